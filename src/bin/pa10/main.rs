@@ -1,0 +1,45 @@
+//! `pa10`: the user's tool for the PA10-6CE — model queries today, calibration, accuracy
+//! bounds, discovery and the daemon client as their issues land.
+//!
+//! Argument parsing and wiring only; the work is done by the `pa10` library.
+
+mod model_cmds;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// pa10: calibrated, compliance-compensating positioning for the Mitsubishi PA10-6CE.
+#[derive(Debug, Parser)]
+#[command(name = "pa10", version, about, propagate_version = true)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Forward kinematics: tool pose (base frame) for joint angles.
+    Fk(model_cmds::FkArgs),
+    /// Inverse kinematics: joint solutions for a tool pose, nearest first.
+    Ik(model_cmds::IkArgs),
+    /// Model files.
+    #[command(subcommand)]
+    Model(model_cmds::ModelCmd),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Fk(a) => model_cmds::fk(&a),
+        Command::Ik(a) => model_cmds::ik(&a),
+        Command::Model(c) => model_cmds::model(&c),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("pa10: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,24 @@
+//! # pa10 — calibrated, compliance-compensating control for the Mitsubishi PA10-6CE
+//!
+//! The library behind the `pa10` tool and the `pa10d` daemon. It follows a
+//! *pure core, IO at the edges* layout:
+//!
+//! - [`model`]: the 30-parameter flexible geometric model of the seed paper
+//!   (standard DH with Hayati's β on the parallel joints 2–3, linear + cubic
+//!   joint stiffness), forward and inverse kinematics, Jacobians, static joint
+//!   torques and the per-cycle compensation `q_motor = q_link + δ(τ)`. Plain
+//!   functions on plain data: no IO, no clocks, no allocation on the hot path.
+//!
+//! Units are SI throughout: metres, radians, newtons, newton-metres, seconds.
+//! Joint vectors are `[f64; 6]` ordered J1 … J6 (S1, S2, E1, E2, W1, W2).
+//!
+//! ```
+//! use pa10::model::Model;
+//! let model = Model::nominal();
+//! // Zero pose: the arm stands straight up; the flange is 0.317 + 0.450 + 0.480 + 0.070 m high.
+//! let flange = model.fk(&[0.0; 6]);
+//! assert!((flange.translation.vector.z - 1.317).abs() < 1e-12);
+//! ```
+#![deny(missing_docs)]
+
+pub mod model;

@@ -1,0 +1,69 @@
+//! The model file format: [`ModelData`], read and written as YAML (serde_yaml).
+//!
+//! This is the only place that knows the file layout; [`Model`](super::Model) validates
+//! what is read here. Unknown keys are rejected (`deny_unknown_fields`), so a typo never
+//! silently falls back to a default.
+
+use serde::{Deserialize, Serialize};
+
+use super::compliance::Stiffness;
+use super::params::{Departure, DhRow};
+use super::robot::{Body, JointLimits};
+
+/// A rigid transform as written in files: translation (metres) and unit quaternion
+/// `[w, x, y, z]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseData {
+    /// Translation, metres.
+    pub translation: [f64; 3],
+    /// Rotation as a unit quaternion `[w, x, y, z]`.
+    pub quaternion: [f64; 4],
+}
+
+impl Default for PoseData {
+    fn default() -> Self {
+        Self {
+            translation: [0.0; 3],
+            quaternion: [1.0, 0.0, 0.0, 0.0],
+        }
+    }
+}
+
+fn default_gravity() -> [f64; 3] {
+    [0.0, 0.0, -9.80665]
+}
+
+/// Everything a model file holds: plain data, no derived values.
+///
+/// See `config/model-nominal.yaml` for an annotated example. Build a [`Model`](super::Model)
+/// from it to validate and evaluate it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelData {
+    /// Free-text name of the robot this model describes.
+    pub robot: String,
+    /// Nominal standard DH table, joints 1…6 (a, d in metres; alpha, theta_offset in rad).
+    pub dh: [DhRow; 6],
+    /// Identified departures from the nominal table (zero for a nominal model).
+    #[serde(default)]
+    pub departures: [Departure; 6],
+    /// Joint springs, joints 1…6; `null` is a rigid joint.
+    #[serde(default)]
+    pub stiffness: [Option<Stiffness>; 6],
+    /// The measuring instrument's frame expressed in the robot base frame (`ᴮᴬˢᴱ_ᴵᴺˢᵀT`):
+    /// maps points measured in the instrument frame into the base frame.
+    #[serde(default)]
+    pub base_from_instrument: PoseData,
+    /// Flange → tool (measured target) transform. Identity makes tool poses flange poses.
+    #[serde(default)]
+    pub tool: PoseData,
+    /// Gravity vector in the robot base frame, m/s².
+    #[serde(default = "default_gravity")]
+    pub gravity: [f64; 3],
+    /// Rigid bodies whose weight loads the joints (links, fixed tooling).
+    #[serde(default)]
+    pub bodies: Vec<Body>,
+    /// Joint position and speed limits.
+    pub joint_limits: JointLimits,
+}

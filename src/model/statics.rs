@@ -1,0 +1,186 @@
+//! Static joint torques (gravity of the links plus an external force at the tool) and the
+//! compliance maps between link-side and motor-side joint angles, including the
+//! per-cycle compensation `q_motor = q_link + δ(τ)`.
+
+use nalgebra::Vector3;
+
+use super::kinematics::Frame;
+use super::robot::{Model, ModelError};
+
+/// An external force acting at the tool frame origin, newtons, base frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ExternalLoad {
+    /// Force on the robot at the tool origin, N, base frame.
+    pub force: Vector3<f64>,
+}
+
+impl ExternalLoad {
+    /// No external force.
+    pub const NONE: Self = Self {
+        force: Vector3::new(0.0, 0.0, 0.0),
+    };
+
+    /// A weight of `newtons` (≥ 0) hung at the tool, pulling along `gravity` (the model's
+    /// gravity vector, any length ≠ 0): the paper's 0 / 22 / 44 / 90 N loads.
+    pub fn hung(newtons: f64, gravity: &Vector3<f64>) -> Self {
+        let n = gravity.norm();
+        let dir = if n > 0.0 {
+            gravity / n
+        } else {
+            Vector3::new(0.0, 0.0, -1.0)
+        };
+        Self {
+            force: dir * newtons,
+        }
+    }
+}
+
+/// Largest number of fixed-point iterations when link angles are solved from motor
+/// angles with configuration-dependent (gravity) torques.
+const MAX_FIXED_POINT: usize = 50;
+
+impl Model {
+    /// The joint torques (N·m) the drives apply to hold the arm static at link angles `q`
+    /// (rad) with `load` at the tool: `τ = −Σ_b J_bᵀ·(m_b·g) − J_toolᵀ·F`, with `J_b` the
+    /// positional Jacobian of body b's centre of mass. Positive along each joint axis.
+    ///
+    /// ```
+    /// use pa10::model::{ExternalLoad, Model};
+    /// let m = Model::nominal();
+    /// // Upright, gravity acts through the joint axes: no torque on any joint.
+    /// let t = m.static_torques(&[0.0; 6], &ExternalLoad::NONE);
+    /// assert!(t.iter().all(|x| x.abs() < 1e-12));
+    /// ```
+    pub fn static_torques(&self, q: &[f64; 6], load: &ExternalLoad) -> [f64; 6] {
+        let f = self.frames(q);
+        self.static_torques_at(&f, load)
+    }
+
+    /// [`Model::static_torques`] from already computed DH frames 0…6.
+    #[inline]
+    pub(crate) fn static_torques_at(&self, f: &[Frame; 7], load: &ExternalLoad) -> [f64; 6] {
+        // Body weights as forces at their world centres of mass.
+        let mut w = [(Vector3::zeros(), Vector3::zeros(), 0usize); super::robot::MAX_BODIES];
+        for (slot, m) in w.iter_mut().zip(&self.masses[..self.n_masses]) {
+            *slot = (
+                (f[m.frame] * nalgebra::Point3::from(m.com)).coords,
+                self.gravity * m.mass,
+                m.frame,
+            );
+        }
+        let p_tool = (f[6] * self.tool).translation.vector;
+        let mut tau = [0.0; 6];
+        for (j, t) in tau.iter_mut().enumerate() {
+            let z = f[j].rotation.matrix().column(2).into_owned();
+            let o = f[j].translation.vector;
+            // Moment about the joint origin of every force the joint carries.
+            let mut moment = (p_tool - o).cross(&load.force);
+            for (c, wf, frame) in &w[..self.n_masses] {
+                if *frame > j {
+                    moment += (c - o).cross(wf);
+                }
+            }
+            *t = -z.dot(&moment);
+        }
+        tau
+    }
+
+    /// Spring deflections `δ(τ)` (rad) of each joint under torques `tau` (N·m); zero for
+    /// rigid joints.
+    #[inline]
+    pub fn deflections(&self, tau: &[f64; 6]) -> [f64; 6] {
+        let mut d = [0.0; 6];
+        for (j, dj) in d.iter_mut().enumerate() {
+            if let Some(s) = self.data().stiffness[j] {
+                *dj = s.deflection(tau[j]);
+            }
+        }
+        d
+    }
+
+    /// Link angles from resolver (motor-side) angles under known torques: `q − δ(τ)`.
+    #[inline]
+    pub fn link_from_motor(&self, q_motor: &[f64; 6], tau: &[f64; 6]) -> [f64; 6] {
+        let d = self.deflections(tau);
+        std::array::from_fn(|j| q_motor[j] - d[j])
+    }
+
+    /// **The compensation step**: motor-side targets that put the *link* at `q_link`
+    /// (rad) under joint torques `tau` (N·m): `q_motor = q_link + δ(τ)`.
+    ///
+    /// Errors when an input is not finite; nothing else can fail.
+    ///
+    /// ```
+    /// use pa10::model::{Model, Stiffness};
+    /// let mut data = Model::nominal().data().clone();
+    /// data.stiffness[1] = Some(Stiffness { klin: 1.98e4, kcub: 0.0 });
+    /// let m = Model::new(data).unwrap();
+    /// let qm = m.compensate(&[0.0, 0.5, 0.0, 0.0, 0.0, 0.0], &[0.0, 19.8, 0.0, 0.0, 0.0, 0.0]).unwrap();
+    /// assert!((qm[1] - 0.501).abs() < 1e-12); // 19.8 N·m / 1.98e4 N·m/rad = 1 mrad ahead
+    /// ```
+    #[inline]
+    pub fn compensate(&self, q_link: &[f64; 6], tau: &[f64; 6]) -> Result<[f64; 6], ModelError> {
+        check_finite("q_link", q_link)?;
+        check_finite("tau", tau)?;
+        let d = self.deflections(tau);
+        Ok(std::array::from_fn(|j| q_link[j] + d[j]))
+    }
+
+    /// The compensation step with torques from the model's gravity and `load`:
+    /// `q_motor = q_link + δ(τ_static(q_link))`. Returns the motor targets and the torques
+    /// used (N·m).
+    #[inline]
+    pub fn compensate_static(
+        &self,
+        q_link: &[f64; 6],
+        load: &ExternalLoad,
+    ) -> Result<([f64; 6], [f64; 6]), ModelError> {
+        check_finite("q_link", q_link)?;
+        if !load.force.iter().all(|v| v.is_finite()) {
+            return Err(ModelError::Invalid {
+                key: "load".into(),
+                reason: "force must be finite (N)".into(),
+            });
+        }
+        let tau = self.static_torques(q_link, load);
+        let d = self.deflections(&tau);
+        Ok((std::array::from_fn(|j| q_link[j] + d[j]), tau))
+    }
+
+    /// Link angles from resolver angles when the torques are those of gravity and `load`
+    /// at the (unknown) link configuration: solves `q = q_motor − δ(τ_static(q))` by
+    /// fixed-point iteration to 1e-13 rad. Returns link angles and torques (N·m).
+    pub fn link_from_motor_static(
+        &self,
+        q_motor: &[f64; 6],
+        load: &ExternalLoad,
+    ) -> Result<([f64; 6], [f64; 6]), ModelError> {
+        check_finite("q_motor", q_motor)?;
+        let mut q = *q_motor;
+        for _ in 0..MAX_FIXED_POINT {
+            let tau = self.static_torques(&q, load);
+            let next = self.link_from_motor(q_motor, &tau);
+            let step = (0..6).map(|j| (next[j] - q[j]).abs()).fold(0.0, f64::max);
+            q = next;
+            if step < 1e-13 {
+                return Ok((q, tau));
+            }
+        }
+        Err(ModelError::Invalid {
+            key: "q_motor".into(),
+            reason: format!(
+                "link angles did not converge in {MAX_FIXED_POINT} iterations: the joints are too compliant for this load"
+            ),
+        })
+    }
+}
+
+fn check_finite(key: &str, v: &[f64; 6]) -> Result<(), ModelError> {
+    match v.iter().position(|x| !x.is_finite()) {
+        None => Ok(()),
+        Some(j) => Err(ModelError::Invalid {
+            key: format!("{key}[{j}]"),
+            reason: format!("must be finite, got {}", v[j]),
+        }),
+    }
+}

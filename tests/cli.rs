@@ -1,0 +1,156 @@
+//! The `pa10` and `pa10d` command lines, run as a user would.
+
+use std::process::{Command, Output};
+
+fn pa10(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pa10"))
+        .args(args)
+        .output()
+        .expect("pa10 runs")
+}
+
+fn stdout_json(o: &Output) -> serde_json::Value {
+    assert!(
+        o.status.success(),
+        "failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).expect("one JSON object")
+}
+
+fn f(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .expect("array")
+        .iter()
+        .map(|x| x.as_f64().expect("number"))
+        .collect()
+}
+
+#[test]
+fn fk_of_the_zero_pose_prints_the_flange_at_1317_mm() {
+    let j = stdout_json(&pa10(&["fk", "--json", "0", "0", "0", "0", "0", "0"]));
+    let p = f(&j["position"]);
+    assert!(
+        (p[2] - 1.317).abs() < 1e-12 && p[0].abs() < 1e-12 && p[1].abs() < 1e-12,
+        "{p:?}"
+    );
+    assert_eq!(f(&j["quaternion"]), vec![1.0, 0.0, 0.0, 0.0]);
+}
+
+#[test]
+fn negative_numbers_parse_as_positionals_and_ik_inverts_fk() {
+    let q = ["0.3", "-0.5", "1.1", "-0.4", "0.7", "-0.2"];
+    let mut args = vec!["fk", "--json"];
+    args.extend(q);
+    let j = stdout_json(&pa10(&args));
+    let (p, r) = (f(&j["position"]), f(&j["quaternion"]));
+    let pose: Vec<String> = p.iter().chain(&r).map(|x| format!("{x:.17}")).collect();
+    let mut args = vec!["ik", "--json", "--near", "0.3,-0.5,1.1,-0.4,0.7,-0.2"];
+    args.extend(pose.iter().map(String::as_str));
+    let j = stdout_json(&pa10(&args));
+    let first = f(&j["solutions"][0]);
+    for (a, b) in first.iter().zip(q) {
+        assert!((a - b.parse::<f64>().unwrap()).abs() < 1e-8, "{first:?}");
+    }
+    assert!(j["solutions"].as_array().unwrap().len() >= 2);
+}
+
+#[test]
+fn fk_in_degrees_and_with_resolver_deflection() {
+    let a = stdout_json(&pa10(&[
+        "fk", "--json", "--deg", "0", "90", "0", "0", "0", "0",
+    ]));
+    assert!((f(&a["position"])[0] - 1.0).abs() < 1e-12);
+    // A rigid nominal model does not deflect: resolver reading = link angle.
+    let b = stdout_json(&pa10(&[
+        "fk",
+        "--json",
+        "--deg",
+        "--resolver",
+        "--load-n",
+        "44",
+        "0",
+        "90",
+        "0",
+        "0",
+        "0",
+        "0",
+    ]));
+    assert_eq!(a, b);
+}
+
+#[test]
+fn a_loaded_compliant_arm_sags() {
+    let dir = std::env::temp_dir().join(format!("pa10-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("stiff.yaml");
+    let text = pa10::model::NOMINAL_YAML.replace(
+        "stiffness: [null, null, null, null, null, null]",
+        "stiffness: [null, {klin: 1.98e4, kcub: 3.35e7}, {klin: 1.27e4, kcub: 1.46e7}, null, {klin: 2.56e3, kcub: 3.83e7}, null]",
+    );
+    std::fs::write(&path, text).unwrap();
+    let p = path.to_str().unwrap();
+    let rigid = stdout_json(&pa10(&[
+        "fk", "--json", "--model", p, "0", "1.5", "0", "0", "0", "0",
+    ]));
+    let sag = stdout_json(&pa10(&[
+        "fk",
+        "--json",
+        "--model",
+        p,
+        "--resolver",
+        "--load-n",
+        "44",
+        "0",
+        "1.5",
+        "0",
+        "0",
+        "0",
+        "0",
+    ]));
+    let dz = f(&rigid["position"])[2] - f(&sag["position"])[2];
+    // ≈ 1 m lever × (4 + 2…) mrad: several millimetres of sag
+    assert!(dz > 0.004 && dz < 0.02, "sag {dz} m");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_input_gets_a_precise_error_and_a_failing_exit() {
+    let o = pa10(&["ik", "0.5", "0.1", "0.6", "0", "1", "0.5", "0"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unit quaternion"));
+    let o = pa10(&["ik", "3.0", "0.1", "0.6", "0", "1", "0", "0"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("out of reach"));
+    let o = pa10(&["fk", "0", "0", "0"]);
+    assert_eq!(o.status.code(), Some(2), "clap usage error");
+    let o = pa10(&["fk", "--load-n", "10", "0", "0", "0", "0", "0", "0"]);
+    assert_eq!(o.status.code(), Some(2), "--load-n needs --resolver");
+    let o = pa10(&["model", "check", "/nonexistent.yaml"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent.yaml"));
+}
+
+#[test]
+fn model_check_summarises_a_valid_file() {
+    let nominal = concat!(env!("CARGO_MANIFEST_DIR"), "/config/model-nominal.yaml");
+    let o = pa10(&["model", "check", nominal]);
+    assert!(o.status.success());
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        s.contains("valid model") && s.contains("d4 0.48 m") && s.contains("all joints rigid"),
+        "{s}"
+    );
+}
+
+#[test]
+fn the_daemon_skeleton_refuses_to_start() {
+    let o = Command::new(env!("CARGO_BIN_EXE_pa10d"))
+        .args([
+            "--config",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/model-nominal.yaml"),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not implemented yet"));
+}

@@ -1,0 +1,67 @@
+//! Shared test helpers: seeded random models and configurations.
+
+use pa10::model::{Frame, Model, Stiffness, frame_from_pose};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+
+/// A seeded generator.
+pub fn rng(seed: u64) -> Pcg64 {
+    Pcg64::seed_from_u64(seed)
+}
+
+/// The nominal model with departures within the seed paper's tolerances, the paper's
+/// stiffness on joints 2, 3, 5, a tooling-ball-like tool and a displaced instrument.
+pub fn perturbed_model(r: &mut Pcg64) -> Model {
+    let mut d = Model::nominal().data().clone();
+    for (j, e) in d.departures.iter_mut().enumerate() {
+        e.da = r.random_range(-2.5e-4..2.5e-4);
+        e.dalpha = r.random_range(-1e-3..1e-3);
+        if j == 1 {
+            e.dbeta = r.random_range(-1e-3..1e-3);
+        } else {
+            e.dd = r.random_range(-2.5e-4..2.5e-4);
+        }
+        e.dtheta = r.random_range(-5e-4..5e-4);
+    }
+    d.stiffness[1] = Some(Stiffness {
+        klin: 1.98e4,
+        kcub: 3.35e7,
+    });
+    d.stiffness[2] = Some(Stiffness {
+        klin: 1.27e4,
+        kcub: 1.46e7,
+    });
+    d.stiffness[4] = Some(Stiffness {
+        klin: 2.56e3,
+        kcub: 3.83e7,
+    });
+    let tool = frame_from_pose([0.01, -0.02, 0.35], [0.99, 0.05, -0.08, 0.1]);
+    d.tool = pa10::model::PoseData {
+        translation: [tool.translation.x, tool.translation.y, tool.translation.z],
+        quaternion: pose_quat(&tool),
+    };
+    Model::new(d).expect("perturbed model is valid")
+}
+
+fn pose_quat(f: &Frame) -> [f64; 4] {
+    pa10::model::pose_parts(f).1
+}
+
+/// A random configuration inside the limits, away from the wrist singularity
+/// (|sin q5| > 0.05) and the shoulder singularity.
+pub fn random_q(r: &mut Pcg64, m: &Model) -> [f64; 6] {
+    let l = m.limits();
+    loop {
+        let q: [f64; 6] = std::array::from_fn(|j| r.random_range(l.lower[j]..l.upper[j]));
+        let f = m.frames(&q);
+        let wrist = f[4].translation.vector;
+        if q[4].sin().abs() > 0.05 && wrist.x.hypot(wrist.y) > 0.05 {
+            return q;
+        }
+    }
+}
+
+/// Largest absolute difference of two joint vectors.
+pub fn max_diff(a: &[f64; 6], b: &[f64; 6]) -> f64 {
+    (0..6).map(|j| (a[j] - b[j]).abs()).fold(0.0, f64::max)
+}

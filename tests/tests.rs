@@ -1,0 +1,7 @@
+//! Integration tests, built as one binary (see `autotests = false` in Cargo.toml).
+#![allow(clippy::unwrap_used)]
+
+mod cli;
+mod common;
+mod model;
+mod model_file;
