@@ -5,3 +5,4 @@ mod cli;
 mod common;
 mod model;
 mod model_file;
+mod properties;
