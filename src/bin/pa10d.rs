@@ -1,6 +1,6 @@
 //! `pa10d`: the PA10 control daemon.
 //!
-//! Skeleton until the [daemon] issue lands: it parses its command line, checks that the
+//! Skeleton until the `[daemon]` issue lands: it parses its command line, checks that the
 //! configuration file is readable and refuses to start with a clear message, so that a
 //! service unit pointing at it fails loudly instead of pretending to control an arm.
 

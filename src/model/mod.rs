@@ -18,13 +18,13 @@ mod compliance;
 mod file;
 mod ik;
 mod kinematics;
-mod params;
+pub mod params;
 mod robot;
 mod statics;
 
 pub use compliance::Stiffness;
 pub use file::{ModelData, PoseData};
-pub use ik::{IkError, IkSolutions};
+pub use ik::{IkError, IkSolutions, MAX_SOLUTIONS};
 pub use kinematics::{
     Frame, IdentJacobian, Jacobian, frame_from_pose, pose_error, pose_parts, rotation_log,
 };
