@@ -21,4 +21,6 @@
 //! ```
 #![deny(missing_docs)]
 
+pub mod accuracy;
 pub mod model;
+pub mod plot;

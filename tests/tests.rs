@@ -1,6 +1,7 @@
 //! Integration tests, built as one binary (see `autotests = false` in Cargo.toml).
 #![allow(clippy::unwrap_used)]
 
+mod accuracy;
 mod cli;
 mod common;
 mod model;

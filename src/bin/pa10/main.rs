@@ -3,6 +3,7 @@
 //!
 //! Argument parsing and wiring only; the work is done by the `pa10` library.
 
+mod accuracy_cmd;
 mod model_cmds;
 
 use std::process::ExitCode;
@@ -23,6 +24,8 @@ enum Command {
     Fk(model_cmds::FkArgs),
     /// Inverse kinematics: joint solutions for a tool pose, nearest first.
     Ik(model_cmds::IkArgs),
+    /// Resolver-uncertainty accuracy bound: Monte Carlo and linearised, per plane.
+    Accuracy(accuracy_cmd::AccuracyArgs),
     /// Model files.
     #[command(subcommand)]
     Model(model_cmds::ModelCmd),
@@ -34,6 +37,7 @@ fn main() -> ExitCode {
         Command::Fk(a) => model_cmds::fk(&a),
         Command::Ik(a) => model_cmds::ik(&a),
         Command::Model(c) => model_cmds::model(&c),
+        Command::Accuracy(a) => accuracy_cmd::accuracy(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -15,7 +15,7 @@ pub struct ModelArg {
 }
 
 impl ModelArg {
-    fn load(&self) -> Result<Model> {
+    pub fn load(&self) -> Result<Model> {
         match &self.model {
             Some(p) => Model::load(p).with_context(|| format!("loading model {}", p.display())),
             None => Ok(Model::nominal()),
