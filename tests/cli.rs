@@ -154,3 +154,86 @@ fn the_daemon_skeleton_refuses_to_start() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("not implemented yet"));
 }
+
+#[test]
+fn accuracy_prints_json_writes_csv_and_plots() {
+    let dir = std::env::temp_dir().join(format!("pa10-acc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("points.csv");
+    let plots = dir.join("plots");
+    let o = pa10(&[
+        "accuracy",
+        "--planes",
+        "0.4,0.6",
+        "--points",
+        "5",
+        "--draws",
+        "2000",
+        "--seed",
+        "3",
+        "--json",
+        "--csv",
+        csv.to_str().unwrap(),
+        "--plot",
+        plots.to_str().unwrap(),
+    ]);
+    let j = stdout_json(&o);
+    let planes = j["planes"].as_array().unwrap();
+    assert_eq!(planes.len(), 2);
+    for (p, z) in planes.iter().zip([0.4, 0.6]) {
+        assert_eq!(p["z"].as_f64().unwrap(), z);
+        for key in ["mean_mm", "sd_mm", "p95_mm", "max_mm", "linearised_mean_mm"] {
+            assert!(p[key].as_f64().unwrap() > 0.0, "{key}");
+        }
+        let ratio = p["mean_mm"].as_f64().unwrap() / p["linearised_mean_mm"].as_f64().unwrap();
+        assert!((ratio - 1.0).abs() < 0.03, "{ratio}");
+    }
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert_eq!(text.lines().count(), 1 + 2 * 5);
+    assert!(text.starts_with("z_m,point,x_m,y_m,q1"));
+    for z in ["0.400", "0.600"] {
+        let svg = std::fs::read_to_string(plots.join(format!("accuracy-z{z}.svg"))).unwrap();
+        assert!(svg.contains("<svg") && svg.contains("<circle"));
+    }
+    // same seed, same numbers; the table mode works too
+    let again = stdout_json(&pa10(&[
+        "accuracy",
+        "--planes",
+        "0.4,0.6",
+        "--points",
+        "5",
+        "--draws",
+        "2000",
+        "--seed",
+        "3",
+        "--json",
+        "--threads",
+        "1",
+    ]));
+    assert_eq!(j["planes"], again["planes"]);
+    let o = pa10(&[
+        "accuracy", "--planes", "0.5", "--points", "3", "--draws", "100",
+    ]);
+    assert!(o.status.success());
+    assert!(String::from_utf8_lossy(&o.stdout).contains("0.197 ± 0.096"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn accuracy_rejects_bad_settings() {
+    for (args, msg) in [
+        (vec!["--sigma-arcmin", "-0.5"], "σ must be finite and ≥ 0"),
+        (vec!["--sigma-arcmin", "0.6,0.6"], "one value or six"),
+        (vec!["--points", "0"], "at least one point"),
+        (vec!["--planes", "2.5", "--points", "2"], "reachable"),
+        (vec!["--region", "0,1,0"], "XMIN,XMAX,YMIN,YMAX"),
+        (vec!["--tool-quaternion", "1,1,0,0"], "unit quaternion"),
+    ] {
+        let mut a = vec!["accuracy", "--draws", "10"];
+        a.extend(args);
+        let o = pa10(&a);
+        assert_eq!(o.status.code(), Some(1), "{a:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(msg), "{a:?}: {err}");
+    }
+}
