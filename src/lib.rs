@@ -22,5 +22,7 @@
 #![deny(missing_docs)]
 
 pub mod accuracy;
+pub mod calib;
 pub mod model;
 pub mod plot;
+pub mod sim;

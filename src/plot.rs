@@ -87,3 +87,55 @@ pub fn scatter_heat(
     root.present().map_err(|e| err(path, e))?;
     Ok(())
 }
+
+/// Points of several labelled series on one chart (`x`, `y` in the given units), each
+/// series in its own colour with a legend.
+pub fn series(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    data: &[(String, Vec<(f64, f64)>)],
+) -> Result<(), PlotError> {
+    let pts = data.iter().flat_map(|(_, v)| v.iter());
+    let (mut x0, mut x1, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    for &(x, y) in pts {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y1 = y1.max(y);
+    }
+    if !x0.is_finite() {
+        return Err(err(path, "no points to plot"));
+    }
+    let root = SVGBackend::new(path, (900, 480)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(path, e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 16))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d((x0 - 1.0)..(x1 + 1.0), 0.0..(y1 * 1.1).max(1e-9))
+        .map_err(|e| err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .draw()
+        .map_err(|e| err(path, e))?;
+    for (k, (label, v)) in data.iter().enumerate() {
+        let c = Palette99::pick(k).to_rgba();
+        chart
+            .draw_series(v.iter().map(|&(x, y)| Circle::new((x, y), 3, c.filled())))
+            .map_err(|e| err(path, e))?
+            .label(label.as_str())
+            .legend(move |(x, y)| Circle::new((x, y), 4, c.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| err(path, e))?;
+    root.present().map_err(|e| err(path, e))?;
+    Ok(())
+}

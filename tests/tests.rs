@@ -2,6 +2,7 @@
 #![allow(clippy::unwrap_used)]
 
 mod accuracy;
+mod calibration;
 mod cli;
 mod common;
 mod model;

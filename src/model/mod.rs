@@ -19,7 +19,7 @@ mod file;
 mod ik;
 mod kinematics;
 pub mod params;
-mod robot;
+pub(crate) mod robot;
 mod statics;
 
 pub use compliance::Stiffness;

@@ -4,6 +4,7 @@
 //! Argument parsing and wiring only; the work is done by the `pa10` library.
 
 mod accuracy_cmd;
+mod calib_cmd;
 mod model_cmds;
 
 use std::process::ExitCode;
@@ -26,6 +27,11 @@ enum Command {
     Ik(model_cmds::IkArgs),
     /// Resolver-uncertainty accuracy bound: Monte Carlo and linearised, per plane.
     Accuracy(accuracy_cmd::AccuracyArgs),
+    /// Calibrate the flexible geometric model on measurements (two-level LM, seed paper II-C).
+    Calibrate(calib_cmd::CalibrateArgs),
+    /// Simulated robot: measurement campaigns with a hidden truth.
+    #[command(subcommand)]
+    Sim(calib_cmd::SimCmd),
     /// Model files.
     #[command(subcommand)]
     Model(model_cmds::ModelCmd),
@@ -38,6 +44,8 @@ fn main() -> ExitCode {
         Command::Ik(a) => model_cmds::ik(&a),
         Command::Model(c) => model_cmds::model(&c),
         Command::Accuracy(a) => accuracy_cmd::accuracy(&a),
+        Command::Calibrate(a) => calib_cmd::calibrate(&a),
+        Command::Sim(c) => calib_cmd::sim(&c),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,396 @@
+//! `pa10 sim measure` and `pa10 calibrate`.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use indicatif::ProgressBar;
+use pa10::calib::dataset::Dataset;
+use pa10::calib::fit::{CalibOptions, Weighting, row_residual};
+use pa10::calib::report::{self, ByLoad, Report};
+use pa10::sim::experiment::{CampaignSpec, paper_campaign};
+
+use crate::model_cmds::ModelArg;
+
+/// `pa10 sim …`
+#[derive(Debug, Subcommand)]
+pub enum SimCmd {
+    /// Generate the seed paper's measurement campaign on a hidden simulated robot.
+    Measure(MeasureArgs),
+}
+
+/// Arguments of `pa10 sim measure`.
+#[derive(Debug, Args)]
+pub struct MeasureArgs {
+    /// Seed of the hidden truth and of every measurement.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Output directory: cal.csv, lines.csv, val.csv (with sidecars) and truth.yaml.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Repeats per calibration configuration and load.
+    #[arg(long, default_value_t = 10)]
+    repeats: usize,
+}
+
+/// `pa10 sim measure`.
+pub fn sim(c: &SimCmd) -> Result<()> {
+    let SimCmd::Measure(a) = c;
+    let spec = CampaignSpec {
+        seed: a.seed,
+        repeats: a.repeats,
+        ..Default::default()
+    };
+    let camp = paper_campaign(&spec)?;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    camp.cal.save(a.out.join("cal.csv"))?;
+    camp.lines.save(a.out.join("lines.csv"))?;
+    camp.val.save(a.out.join("val.csv"))?;
+    let truth = format!(
+        "# HIDDEN TRUTH of the simulated robot (pa10 sim measure --seed {}).\n# The calibration never reads this file; compare against it afterwards.\n{}",
+        a.seed,
+        camp.truth.model.to_yaml()
+    );
+    std::fs::write(a.out.join("truth.yaml"), truth).with_context(|| "writing truth.yaml")?;
+    println!(
+        "wrote {}: cal.csv ({} rows), lines.csv ({} rows), val.csv ({} rows), their .meta.yaml sidecars, truth.yaml (hidden truth)",
+        a.out.display(),
+        camp.cal.rows.len(),
+        camp.lines.rows.len(),
+        camp.val.rows.len()
+    );
+    Ok(())
+}
+
+/// Row weighting choice on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum WeightingArg {
+    /// Generalised least squares for repeatable resolver errors (default).
+    Gls,
+    /// The paper's cost exactly.
+    Paper,
+}
+
+/// Arguments of `pa10 calibrate`.
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// Calibration dataset (CSV; a `.meta.yaml` sidecar beside it is read).
+    #[arg(long, value_name = "FILE")]
+    data: PathBuf,
+    /// Straight-line moves along the robot's x and y axes (ids x0…, y0…) for the base-frame
+    /// seed; without it the seed is a point fit.
+    #[arg(long, value_name = "FILE")]
+    base_seed: Option<PathBuf>,
+    /// Validation dataset: configurations and loads outside the calibration set.
+    #[arg(long, value_name = "FILE")]
+    validate: Option<PathBuf>,
+    /// Where to write the calibrated model (YAML).
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Fit linear stiffness only (Kcub = 0).
+    #[arg(long)]
+    linear_only: bool,
+    /// The paper's regularisation weight ε (it used 1.6e-4; see docs/calibration.md).
+    #[arg(long, default_value_t = 0.0)]
+    epsilon: f64,
+    /// Row weighting.
+    #[arg(long, value_enum, default_value = "gls")]
+    weighting: WeightingArg,
+    /// Number of starts (multi-start).
+    #[arg(long, default_value_t = 4)]
+    starts: usize,
+    /// Seed of the random starts.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Inner-level configurations: `all` (every unloaded one) or a comma-separated id list;
+    /// default: the sidecar's, else 8 spread-out ones.
+    #[arg(long, value_name = "all|ID,…")]
+    inner_configs: Option<String>,
+    /// Motor current → joint torque constants, N·m/A, six comma-separated (for `i1..i6` data).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+    torque_constants: Option<Vec<f64>>,
+    /// Write residual plots (SVG) into this directory.
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
+    /// Print one JSON object instead of the tables.
+    #[arg(long)]
+    json: bool,
+}
+
+fn load(p: &Path) -> Result<Dataset> {
+    Dataset::load(p).with_context(|| format!("loading {}", p.display()))
+}
+
+/// `pa10 calibrate`.
+pub fn calibrate(a: &CalibrateArgs) -> Result<()> {
+    let model = a.model.load()?;
+    let data = load(&a.data)?;
+    let lines = a.base_seed.as_deref().map(load).transpose()?;
+    let val = a.validate.as_deref().map(load).transpose()?;
+    let inner_configs = match a.inner_configs.as_deref() {
+        None => None,
+        Some("all") => {
+            let mut ids: Vec<String> = data
+                .rows
+                .iter()
+                .filter(|r| r.load_n == 0.0)
+                .map(|r| r.config_id.clone())
+                .collect();
+            ids.dedup();
+            ids.sort();
+            ids.dedup();
+            Some(ids)
+        }
+        Some(list) => Some(list.split(',').map(|s| s.trim().to_string()).collect()),
+    };
+    let torque_constants = match &a.torque_constants {
+        None => None,
+        Some(v) => Some(<[f64; 6]>::try_from(v.as_slice()).map_err(|_| {
+            anyhow::anyhow!("--torque-constants takes six values, got {}", v.len())
+        })?),
+    };
+    let opts = CalibOptions {
+        epsilon: a.epsilon,
+        linear_only: a.linear_only,
+        starts: a.starts,
+        seed: a.seed,
+        inner_configs,
+        torque_constants,
+        weighting: match a.weighting {
+            WeightingArg::Gls => Weighting::Gls,
+            WeightingArg::Paper => Weighting::Paper,
+        },
+        ..Default::default()
+    };
+    if let Some(dir) = &a.report {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let bar = ProgressBar::new(opts.starts as u64).with_message("starts");
+    let outcome = report::run(&model, &data, lines.as_ref(), val.as_ref(), &opts, &|n| {
+        bar.set_position(n as u64)
+    })?;
+    bar.finish_and_clear();
+    outcome
+        .result
+        .model
+        .save(&a.out)
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    if let Some(dir) = &a.report {
+        plots(dir, &outcome, &data, val.as_ref(), opts.r_max)?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string(&outcome.report)?);
+    } else {
+        print_report(&outcome.report, &a.out)?;
+    }
+    Ok(())
+}
+
+fn sorted(m: &ByLoad) -> Vec<&pa10::calib::fit::ErrorSummary> {
+    let mut v: Vec<_> = m.values().collect();
+    v.sort_by(|a, b| a.load_n.total_cmp(&b.load_n));
+    v
+}
+
+fn print_report(r: &Report, out: &Path) -> Result<()> {
+    let mut o = std::io::stdout().lock();
+    writeln!(
+        o,
+        "calibration: {} rows, {} configurations, {} starts, weighting {:?}, ε = {}{} ({:.2} s)",
+        r.rows,
+        r.configurations,
+        r.start_costs.len(),
+        r.weighting,
+        r.epsilon,
+        if r.linear_only {
+            ", linear stiffness only"
+        } else {
+            ""
+        },
+        r.elapsed_s
+    )?;
+    writeln!(
+        o,
+        "\ncalibration set      before (nominal)                 after"
+    )?;
+    writeln!(
+        o,
+        "  load [N]  rows   mean / peak [mm]  orient [deg]   mean / peak [mm]  orient [deg]"
+    )?;
+    for (b, a) in sorted(&r.before).iter().zip(sorted(&r.after)) {
+        writeln!(
+            o,
+            "  {:8.1}  {:4}   {:6.3} / {:6.3}   {:8.4}       {:6.3} / {:6.3}   {:8.4}",
+            b.load_n,
+            b.rows,
+            b.mean_mm,
+            b.peak_mm,
+            b.mean_orient_deg,
+            a.mean_mm,
+            a.peak_mm,
+            a.mean_orient_deg
+        )?;
+    }
+    if let Some(v) = &r.validation {
+        writeln!(
+            o,
+            "\nvalidation set       nominal            linear stiffness    full model          resolver floor"
+        )?;
+        writeln!(
+            o,
+            "  load [N]  rows   mean / peak [mm]   mean / peak [mm]    mean / peak [mm]    mean [mm]"
+        )?;
+        for ((b, l), a) in sorted(&v.before)
+            .iter()
+            .zip(sorted(&v.linear))
+            .zip(sorted(&v.after))
+        {
+            let floor = v
+                .floor_mm
+                .get(&format!("{}", a.load_n))
+                .copied()
+                .unwrap_or(f64::NAN);
+            writeln!(
+                o,
+                "  {:8.1}  {:4}   {:6.3} / {:6.3}    {:6.3} / {:6.3}     {:6.3} / {:6.3}     {:6.3}",
+                b.load_n,
+                b.rows,
+                b.mean_mm,
+                b.peak_mm,
+                l.mean_mm,
+                l.peak_mm,
+                a.mean_mm,
+                a.peak_mm,
+                floor
+            )?;
+        }
+    }
+    writeln!(o, "\nidentified parameters (± standard error)")?;
+    for p in &r.params {
+        let (scale, unit) = match p.unit.as_str() {
+            "m" => (1e3, "mm"),
+            "rad" => (1e3, "mrad"),
+            u => (1.0, u),
+        };
+        match p.std_error {
+            Some(se) => writeln!(
+                o,
+                "  {:8} {:+12.5e} ± {:10.3e} {unit}",
+                p.name,
+                p.value * scale,
+                se * scale
+            )?,
+            None => writeln!(
+                o,
+                "  {:8} {:+12.5e}   (fixed)    {unit}",
+                p.name,
+                p.value * scale
+            )?,
+        }
+    }
+    let sv = &r.singular_values;
+    writeln!(
+        o,
+        "\nidentification Jacobian (scaled): {} singular values, largest {:.3e}, smallest {:.3e}; {} structurally null; condition number of the rest {:.3e}",
+        sv.len(),
+        sv.first().copied().unwrap_or(0.0),
+        sv.last().copied().unwrap_or(0.0),
+        r.null_directions,
+        r.condition_number
+    )?;
+    if !r.weak.is_empty() {
+        writeln!(
+            o,
+            "warning: {} parameter combination(s) cannot be identified from this data; they were held near nominal/seed:",
+            r.weak.len()
+        )?;
+        for w in &r.weak {
+            let names: Vec<String> = w
+                .params
+                .iter()
+                .map(|(n, l)| format!("{n} ({l:+.2})"))
+                .collect();
+            writeln!(
+                o,
+                "  std error {:7.2} (tolerances / log-units): {}",
+                w.std_error,
+                names.join(", ")
+            )?;
+        }
+    }
+    writeln!(o, "\nwrote {}", out.display())?;
+    Ok(())
+}
+
+fn plots(
+    dir: &Path,
+    outcome: &report::Outcome,
+    data: &Dataset,
+    val: Option<&Dataset>,
+    r_max: f64,
+) -> Result<()> {
+    let per_config = |model: &pa10::model::Model, d: &Dataset| -> Vec<(String, Vec<(f64, f64)>)> {
+        let mut ids: Vec<&str> = Vec::new();
+        let mut series: Vec<(String, Vec<(f64, f64)>)> = d
+            .loads()
+            .iter()
+            .map(|l| (format!("{l} N"), Vec::new()))
+            .collect();
+        for r in &d.rows {
+            let k = ids
+                .iter()
+                .position(|i| *i == r.config_id)
+                .unwrap_or_else(|| {
+                    ids.push(&r.config_id);
+                    ids.len() - 1
+                });
+            let tau = match r.effort {
+                pa10::calib::dataset::Effort::Torque(t) => t,
+                pa10::calib::dataset::Effort::Current(_) => [0.0; 6],
+            };
+            let e = row_residual(model, &r.q, &tau, &r.pose, r_max)
+                .fixed_rows::<3>(0)
+                .norm()
+                * r_max
+                * 1e3;
+            if let Some(s) = d.loads().iter().position(|l| *l == r.load_n) {
+                series[s].1.push((k as f64, e));
+            }
+        }
+        series
+    };
+    for (name, title, model, d) in [
+        (
+            "residuals-before.svg",
+            "position error before calibration (nominal model), per configuration",
+            &outcome.before_model,
+            Some(data),
+        ),
+        (
+            "residuals-after.svg",
+            "position error after calibration, per configuration",
+            &outcome.result.model,
+            Some(data),
+        ),
+        (
+            "validation-after.svg",
+            "validation: position error of the calibrated model, per configuration",
+            &outcome.result.model,
+            val,
+        ),
+    ] {
+        if let Some(d) = d {
+            pa10::plot::series(
+                &dir.join(name),
+                title,
+                "configuration (order of appearance)",
+                "position error [mm]",
+                &per_config(model, d),
+            )?;
+        }
+    }
+    Ok(())
+}

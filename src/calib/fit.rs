@@ -1,0 +1,1116 @@
+//! The two-level Levenberg–Marquardt identification (seed paper §II-C).
+//!
+//! **Outer level**: the 30 parameters (or 27 with `linear_only`) in scaled form — geometric
+//! departures divided by the paper's tolerances (a 0.25 mm, α 1e-3 rad, d 0.25 mm,
+//! β 1e-3 rad, θ 5e-4 rad) and stiffness as `ln(K / K_seed)` — minimising the paper's cost:
+//! position errors / `r_max` and orientation errors (rad) over every row, plus the optional
+//! `ε·Σ(δ/tol)²` term. Solved with the `levenberg-marquardt` crate (MINPACK's algorithm).
+//! **Inner level**: at every outer step the base frame Ψ is re-solved by Gauss–Newton on the
+//! inner configurations; the outer Jacobian carries `∂Ψ*/∂X` by implicit differentiation.
+//!
+//! **Unidentifiable directions**: the SVD of the scaled outer Jacobian at the start shows
+//! which parameter combinations the data cannot determine (standard error above
+//! [`CalibOptions::weak_threshold`] in scaled units, from the residual noise level). Only
+//! those get a prior pulling them to their nominal / seed value, with one tolerance (or a
+//! factor e in stiffness) as its standard deviation; everything the data see stays
+//! unbiased. The paper's global ε is still available.
+
+use nalgebra::{DMatrix, DVector, Dyn, Owned, SMatrix, Vector6};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use rayon::prelude::*;
+
+use super::base::{self, Psi};
+use super::dataset::{Dataset, Effort};
+use crate::model::params::{IDX_KCUB, IDX_KLIN, PARAM_COUNT};
+use crate::model::{
+    Frame, Model, ModelError, ParamVector, Stiffness, frame_from_pose, param_names,
+};
+use crate::sim::{PAPER_STIFFNESS, TOLERANCES};
+
+/// How to calibrate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibOptions {
+    /// The paper's regularisation weight ε on `Σ(δ/tol)²` (the paper used 1.6e-4).
+    pub epsilon: f64,
+    /// Fit linear stiffness only (Kcub = 0), the paper's comparison model.
+    pub linear_only: bool,
+    /// Number of starts (the first is the nominal geometry with the seed stiffness).
+    pub starts: usize,
+    /// Seed of the random starts.
+    pub seed: u64,
+    /// Position normalisation, m (the paper's `r_max` = 1 m).
+    pub r_max: f64,
+    /// A scaled direction whose standard error exceeds this (in tolerances, or log-units of
+    /// stiffness) is regularised.
+    pub weak_threshold: f64,
+    /// Configurations for the inner level; the sidecar's, else 8 chosen automatically.
+    pub inner_configs: Option<Vec<String>>,
+    /// Starting stiffness (Klin N·m/rad, Kcub N·m/rad³) of J2, J3, J5 when the model has
+    /// none; also the centre of the stiffness prior.
+    pub stiffness_seed: [(f64, f64); 3],
+    /// Motor current → joint torque constants, N·m/A, for datasets with currents.
+    pub torque_constants: Option<[f64; 6]>,
+    /// Residual noise level per component (paper units); estimated from the sidecar's
+    /// noise when `None`. Used by [`Weighting::Paper`].
+    pub noise_level: Option<f64>,
+    /// How rows are weighted.
+    pub weighting: Weighting,
+}
+
+/// How the data residuals are weighted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum Weighting {
+    /// The paper's cost exactly: every row's position error / `r_max` and orientation error
+    /// (rad), all with weight one.
+    Paper,
+    /// Generalised least squares for the error structure of a real campaign: resolver errors
+    /// repeat at a configuration (same angles for every repeat and load) while instrument
+    /// noise does not. Rows of a configuration share a random offset (σ_u: the resolver
+    /// floor) on top of independent noise (σ_e: the repeat scatter), so the fit trusts
+    /// within-configuration contrasts — the load steps that reveal stiffness — and
+    /// discounts configuration means. Residuals are whitened (unit variance).
+    Gls,
+}
+
+impl Default for CalibOptions {
+    fn default() -> Self {
+        Self {
+            epsilon: 0.0,
+            linear_only: false,
+            starts: 4,
+            seed: 1,
+            r_max: 1.0,
+            weak_threshold: 0.5,
+            inner_configs: None,
+            stiffness_seed: PAPER_STIFFNESS,
+            torque_constants: None,
+            noise_level: None,
+            weighting: Weighting::Gls,
+        }
+    }
+}
+
+/// Why a calibration could not run. Nothing is written when one is returned.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CalibError {
+    /// An option is out of range.
+    #[error("invalid option {key}: {reason}")]
+    Option {
+        /// The option.
+        key: &'static str,
+        /// Why.
+        reason: String,
+    },
+    /// The data cannot support the fit.
+    #[error("dataset: {0}")]
+    Data(String),
+    /// A model could not be built.
+    #[error(transparent)]
+    Model(#[from] ModelError),
+    /// The optimiser failed on every start.
+    #[error("the optimisation failed on every start: {0}")]
+    Failed(String),
+}
+
+/// A parameter combination the data cannot determine.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct WeakDirection {
+    /// Singular value of the scaled Jacobian.
+    pub singular_value: f64,
+    /// Its standard error without the prior, scaled units.
+    pub std_error: f64,
+    /// The parameters it involves most, with their loadings (|loading| ≥ 0.2).
+    pub params: Vec<(String, f64)>,
+}
+
+/// What a calibration found.
+#[derive(Debug, Clone)]
+pub struct CalibResult {
+    /// The calibrated model: departures, stiffness, base frame and tool filled in.
+    pub model: Model,
+    /// Final cost (sum of squared residuals, paper units, priors included).
+    pub cost: f64,
+    /// Data part of the cost.
+    pub data_cost: f64,
+    /// Per-parameter standard errors in physical units (`None`: fixed or not estimable).
+    pub std_errors: [Option<f64>; PARAM_COUNT],
+    /// Singular values of the scaled data Jacobian at the solution, descending.
+    pub singular_values: Vec<f64>,
+    /// Directions regularised because the data cannot see them.
+    pub weak: Vec<WeakDirection>,
+    /// Cost reached by each start, in start order.
+    pub start_costs: Vec<f64>,
+    /// Residual noise level used for the weak-direction test (paper units).
+    pub noise_level: f64,
+    /// Base-frame parameters Ψ (m, rad).
+    pub psi: Psi,
+}
+
+/// What one start reached: scaled parameters, cost, base frame.
+type StartOutcome = (DVector<f64>, f64, Psi);
+
+/// A dataset row prepared for fitting.
+#[derive(Debug, Clone)]
+pub(crate) struct Prepared {
+    pub q: [f64; 6],
+    pub tau: [f64; 6],
+    pub meas: Frame,
+    pub load_n: f64,
+    pub inner: bool,
+}
+
+/// Scaled ⇄ physical parameters.
+#[derive(Debug, Clone)]
+struct ParamMap {
+    /// Indices (into the 30) of the free parameters.
+    free: Vec<usize>,
+    k_ref: [(f64, f64); 3],
+    linear_only: bool,
+}
+
+fn tolerance(i: usize) -> f64 {
+    match i {
+        0..=5 => TOLERANCES[0],
+        6..=11 => TOLERANCES[1],
+        13 => TOLERANCES[3],
+        12..=17 => TOLERANCES[2],
+        _ => TOLERANCES[4],
+    }
+}
+
+impl ParamMap {
+    fn physical(&self, s: &DVector<f64>) -> ParamVector {
+        let mut p = [0.0; PARAM_COUNT];
+        for k in 0..3 {
+            p[IDX_KLIN + k] = self.k_ref[k].0;
+            p[IDX_KCUB + k] = if self.linear_only {
+                0.0
+            } else {
+                self.k_ref[k].1
+            };
+        }
+        for (c, &i) in self.free.iter().enumerate() {
+            p[i] = if i < IDX_KLIN {
+                s[c] * tolerance(i)
+            } else {
+                p[i] * s[c].exp()
+            };
+        }
+        p
+    }
+    /// dX_i/ds for the free parameters at physical `p`.
+    fn chain(&self, p: &ParamVector) -> Vec<f64> {
+        self.free
+            .iter()
+            .map(|&i| if i < IDX_KLIN { tolerance(i) } else { p[i] })
+            .collect()
+    }
+    fn scaled(&self, p: &ParamVector) -> DVector<f64> {
+        DVector::from_iterator(
+            self.free.len(),
+            self.free.iter().map(|&i| {
+                if i < IDX_KLIN {
+                    p[i] / tolerance(i)
+                } else {
+                    let r = if i < IDX_KCUB {
+                        self.k_ref[i - IDX_KLIN].0
+                    } else {
+                        self.k_ref[i - IDX_KCUB].1
+                    };
+                    (p[i] / r).ln()
+                }
+            }),
+        )
+    }
+}
+
+/// Prepares rows: torques from the effort columns, the inner flag.
+pub(crate) fn prepare(
+    data: &Dataset,
+    inner_ids: &[String],
+    kt: Option<[f64; 6]>,
+) -> Result<Vec<Prepared>, CalibError> {
+    data.rows
+        .iter()
+        .map(|r| {
+            let tau = match r.effort {
+                Effort::Torque(t) => t,
+                Effort::Current(i) => {
+                    let k = kt.ok_or_else(|| {
+                        CalibError::Data(format!(
+                            "line {}: motor currents need torque constants (N·m/A); give them or record torques",
+                            r.line
+                        ))
+                    })?;
+                    std::array::from_fn(|j| i[j] * k[j])
+                }
+            };
+            Ok(Prepared { q: r.q, tau, meas: r.pose, load_n: r.load_n, inner: r.load_n == 0.0 && inner_ids.contains(&r.config_id) })
+        })
+        .collect()
+}
+
+/// Eight inner-level configurations: the sidecar's, or farthest-point picks among the
+/// unloaded configurations (spread out, so the base frame is well determined).
+pub(crate) fn choose_inner(data: &Dataset, opts: &CalibOptions) -> Result<Vec<String>, CalibError> {
+    if let Some(ids) = opts
+        .inner_configs
+        .clone()
+        .or_else(|| data.meta.as_ref().and_then(|m| m.inner_configs.clone()))
+    {
+        for id in &ids {
+            if !data
+                .rows
+                .iter()
+                .any(|r| &r.config_id == id && r.load_n == 0.0)
+            {
+                return Err(CalibError::Data(format!(
+                    "inner-level configuration `{id}` has no unloaded row"
+                )));
+            }
+        }
+        return Ok(ids);
+    }
+    let mut ids: Vec<(String, nalgebra::Vector3<f64>)> = Vec::new();
+    for r in data.rows.iter().filter(|r| r.load_n == 0.0) {
+        if !ids.iter().any(|(i, _)| i == &r.config_id) {
+            ids.push((r.config_id.clone(), r.pose.translation.vector));
+        }
+    }
+    if ids.len() < 3 {
+        return Err(CalibError::Data(format!(
+            "the inner level needs ≥ 3 unloaded configurations, found {}",
+            ids.len()
+        )));
+    }
+    let mut chosen = vec![0usize];
+    while chosen.len() < 8.min(ids.len()) {
+        let next = (0..ids.len())
+            .filter(|i| !chosen.contains(i))
+            .max_by(|&a, &b| {
+                let d = |i: usize| {
+                    chosen
+                        .iter()
+                        .map(|&c| (ids[i].1 - ids[c].1).norm())
+                        .fold(f64::INFINITY, f64::min)
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap_or(0);
+        chosen.push(next);
+    }
+    Ok(chosen.into_iter().map(|i| ids[i].0.clone()).collect())
+}
+
+/// The outer least-squares problem for the `levenberg-marquardt` crate.
+struct Outer<'a> {
+    base_model: &'a Model,
+    rows: &'a [Prepared],
+    map: &'a ParamMap,
+    opts: &'a CalibOptions,
+    /// Prior rows: (weight vector over the scaled params, centre).
+    priors: &'a [DVector<f64>],
+    /// GLS whitening, when used.
+    whiten: Option<&'a Whitening>,
+    s: DVector<f64>,
+    model: Option<Model>,
+    psi: Psi,
+}
+
+/// The GLS transform: per configuration group, per residual component,
+/// `r'_k = (r_k − (1 − w)·r̄) / σ_e` with `w² = σ_e² / (σ_e² + n·σ_u²)`.
+#[derive(Debug, Clone)]
+pub(crate) struct Whitening {
+    /// Row indices of each configuration.
+    groups: Vec<Vec<usize>>,
+    /// Per residual component (3 position, 3 orientation): σ_e, σ_u (paper units).
+    sigma_e: [f64; 6],
+    sigma_u: [f64; 6],
+}
+
+impl Whitening {
+    /// Applies the transform to the 6-per-row block of `m` (rows 0…6·n), in place; `cols`
+    /// columns (1 for a residual vector).
+    fn apply(&self, m: &mut DMatrix<f64>) {
+        let cols = m.ncols();
+        for g in &self.groups {
+            let n = g.len() as f64;
+            for c in 0..6 {
+                let (se, su) = (self.sigma_e[c], self.sigma_u[c]);
+                let w = (se * se / (se * se + n * su * su)).sqrt();
+                for col in 0..cols {
+                    let mean = g.iter().map(|&k| m[(6 * k + c, col)]).sum::<f64>() / n;
+                    for &k in g {
+                        m[(6 * k + c, col)] = (m[(6 * k + c, col)] - (1.0 - w) * mean) / se;
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl Outer<'_> {
+    fn n_res(&self) -> usize {
+        6 * self.rows.len()
+            + if self.opts.epsilon > 0.0 {
+                self.map.free.iter().filter(|&&i| i < IDX_KLIN).count()
+            } else {
+                0
+            }
+            + self.priors.len()
+    }
+
+    fn predictions(&self, model: &Model) -> Vec<Frame> {
+        self.rows
+            .iter()
+            .map(|r| model.fk(&model.link_from_motor(&r.q, &r.tau)))
+            .collect()
+    }
+
+    fn solve_inner(&self, model: &Model, start: &Psi) -> Psi {
+        let pairs: Vec<(Frame, Frame)> = self
+            .rows
+            .iter()
+            .filter(|r| r.inner)
+            .map(|r| (model.fk(&model.link_from_motor(&r.q, &r.tau)), r.meas))
+            .collect();
+        base::fit_psi(&pairs, start, self.opts.r_max).0
+    }
+
+    /// Data residuals and, when asked, the full Jacobian in scaled parameters.
+    fn evaluate(&self, with_jacobian: bool) -> Option<(DVector<f64>, Option<DMatrix<f64>>)> {
+        let model = self.model.as_ref()?;
+        let n = self.map.free.len();
+        let bf = base::frame_from_psi(&self.psi);
+        let preds = self.predictions(model);
+        let mut r = DVector::zeros(self.n_res());
+        let p = model.params();
+        let chain = self.map.chain(&p);
+        let mut jac = with_jacobian.then(|| DMatrix::zeros(self.n_res(), n));
+        // Per-row scaled Jacobians w.r.t. the free parameters and Ψ.
+        let mut js: Vec<(SMatrix<f64, 6, 6>, DMatrix<f64>)> = Vec::new();
+        for (k, row) in self.rows.iter().enumerate() {
+            let (res, jpsi) = base::residual_and_psi_jacobian(
+                &preds[k],
+                &row.meas,
+                &self.psi,
+                &bf,
+                self.opts.r_max,
+            );
+            r.fixed_rows_mut::<6>(6 * k).copy_from(&res);
+            if with_jacobian {
+                let ident = model.identification_jacobian(&row.q, &row.tau);
+                let mut jx = DMatrix::zeros(6, n);
+                for (c, &i) in self.map.free.iter().enumerate() {
+                    let col = ident.column(i) * chain[c];
+                    for a in 0..3 {
+                        jx[(a, c)] = col[a] / self.opts.r_max;
+                        jx[(3 + a, c)] = col[3 + a];
+                    }
+                }
+                js.push((jpsi, jx));
+            }
+        }
+        if let Some(jac) = jac.as_mut() {
+            // Implicit differentiation of the inner optimum: dΨ/ds = −H⁻¹ Σ_inner J_Ψᵀ J_s.
+            let mut h = SMatrix::<f64, 6, 6>::zeros();
+            let mut b = DMatrix::<f64>::zeros(6, n);
+            for (k, row) in self.rows.iter().enumerate() {
+                if row.inner {
+                    let (jp, jx) = &js[k];
+                    h += jp.transpose() * jp;
+                    b += DMatrix::from_iterator(6, 6, (jp.transpose()).iter().cloned()) * jx;
+                }
+            }
+            let hinv = h.try_inverse()?;
+            let dpsi = -DMatrix::from_iterator(6, 6, hinv.iter().cloned()) * b;
+            for (k, (jp, jx)) in js.iter().enumerate() {
+                let total = jx + DMatrix::from_iterator(6, 6, jp.iter().cloned()) * &dpsi;
+                jac.view_mut((6 * k, 0), (6, n)).copy_from(&total);
+            }
+        }
+        if let Some(wh) = self.whiten {
+            let m = 6 * self.rows.len();
+            let mut rv = DMatrix::from_column_slice(m, 1, &r.as_slice()[..m]);
+            wh.apply(&mut rv);
+            r.rows_mut(0, m).copy_from(&rv.column(0));
+            if let Some(j) = jac.as_mut() {
+                let mut block = j.rows(0, m).into_owned();
+                wh.apply(&mut block);
+                j.rows_mut(0, m).copy_from(&block);
+            }
+        }
+        let mut at = 6 * self.rows.len();
+        if self.opts.epsilon > 0.0 {
+            // ε is defined against the paper's units; whitened residuals are in units of
+            // the position noise, so scale it alike.
+            let unit = self.whiten.map_or(1.0, |w| w.sigma_e[0]);
+            let w = self.opts.epsilon.sqrt() / unit;
+            for (c, &i) in self.map.free.iter().enumerate() {
+                if i < IDX_KLIN {
+                    r[at] = w * self.s[c];
+                    if let Some(j) = jac.as_mut() {
+                        j[(at, c)] = w;
+                    }
+                    at += 1;
+                }
+            }
+        }
+        for pr in self.priors {
+            r[at] = pr.dot(&self.s);
+            if let Some(j) = jac.as_mut() {
+                j.row_mut(at).copy_from(&pr.transpose());
+            }
+            at += 1;
+        }
+        Some((r, jac))
+    }
+}
+
+impl levenberg_marquardt::LeastSquaresProblem<f64, Dyn, Dyn> for Outer<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        self.s.copy_from(x);
+        let p = self.map.physical(x);
+        self.model = self.base_model.with_params(&p).ok();
+        if let Some(m) = &self.model {
+            self.psi = self.solve_inner(m, &self.psi);
+        }
+    }
+    fn params(&self) -> DVector<f64> {
+        self.s.clone()
+    }
+    fn residuals(&self) -> Option<DVector<f64>> {
+        self.evaluate(false).map(|(r, _)| r)
+    }
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        self.evaluate(true).and_then(|(_, j)| j)
+    }
+}
+
+/// The base-frame seed: straight lines when given, else a point fit on the inner rows.
+pub(crate) fn seed_base(
+    model: &Model,
+    rows: &[Prepared],
+    lines: Option<&Dataset>,
+) -> Result<Psi, CalibError> {
+    let inner: Vec<&Prepared> = rows.iter().filter(|r| r.inner).collect();
+    let robot: Vec<_> = inner
+        .iter()
+        .map(|r| {
+            model
+                .fk(&model.link_from_motor(&r.q, &r.tau))
+                .translation
+                .vector
+        })
+        .collect();
+    let inst: Vec<_> = inner.iter().map(|r| r.meas.translation.vector).collect();
+    let frame = match lines {
+        Some(l) => {
+            let pick = |prefix: char| {
+                let mut v: Vec<_> = l
+                    .rows
+                    .iter()
+                    .filter(|r| r.config_id.starts_with(prefix))
+                    .collect();
+                v.sort_by_key(|r| {
+                    r.config_id
+                        .trim_start_matches(prefix)
+                        .parse::<u32>()
+                        .unwrap_or(u32::MAX)
+                });
+                v.iter()
+                    .map(|r| r.pose.translation.vector)
+                    .collect::<Vec<_>>()
+            };
+            let (x, y) = (pick('x'), pick('y'));
+            if x.len() < 2 || y.len() < 2 {
+                return Err(CalibError::Data(
+                    "the lines file needs ≥ 2 rows along x (ids x0, x1, …) and ≥ 2 along y (y0, y1, …)".into(),
+                ));
+            }
+            base::seed_from_lines(&x, &y, &robot, &inst)
+        }
+        None => base::seed_from_points(&robot, &inst),
+    };
+    let frame = frame.ok_or_else(|| {
+        CalibError::Data("the base-frame seed is degenerate (points on a line?)".into())
+    })?;
+    Ok(base::psi_from_frame(&frame))
+}
+
+/// The model to start from: tool from the sidecar, seed stiffness where the model has none.
+pub(crate) fn start_model(
+    model: &Model,
+    data: &Dataset,
+    opts: &CalibOptions,
+) -> Result<Model, CalibError> {
+    let mut d = model.data().clone();
+    if let Some(t) = data.meta.as_ref().and_then(|m| m.tool) {
+        d.tool = t;
+    }
+    for (k, &j) in crate::model::STIFF_JOINTS.iter().enumerate() {
+        let (kl, kc) = opts.stiffness_seed[k];
+        let s = d.stiffness[j].unwrap_or(Stiffness { klin: kl, kcub: kc });
+        d.stiffness[j] = Some(Stiffness {
+            klin: s.klin,
+            kcub: if opts.linear_only {
+                0.0
+            } else if s.kcub > 0.0 {
+                s.kcub
+            } else {
+                kc
+            },
+        });
+    }
+    Ok(Model::new(d)?)
+}
+
+fn check(opts: &CalibOptions) -> Result<(), CalibError> {
+    let bad = |key, reason: String| Err(CalibError::Option { key, reason });
+    if !(opts.epsilon.is_finite() && opts.epsilon >= 0.0) {
+        return bad(
+            "epsilon",
+            format!("must be finite and ≥ 0, got {}", opts.epsilon),
+        );
+    }
+    if opts.starts == 0 || opts.starts > 1000 {
+        return bad("starts", format!("must be 1…1000, got {}", opts.starts));
+    }
+    if !(opts.r_max.is_finite() && opts.r_max > 0.0) {
+        return bad(
+            "r_max",
+            format!("must be a length > 0 m, got {}", opts.r_max),
+        );
+    }
+    if !(opts.weak_threshold.is_finite() && opts.weak_threshold > 0.0) {
+        return bad(
+            "weak_threshold",
+            format!("must be > 0, got {}", opts.weak_threshold),
+        );
+    }
+    for (k, (kl, kc)) in opts.stiffness_seed.iter().enumerate() {
+        if !(kl.is_finite() && *kl > 0.0 && kc.is_finite() && *kc > 0.0) {
+            return bad(
+                "stiffness_seed",
+                format!("entry {k} needs Klin > 0 N·m/rad and Kcub > 0 N·m/rad³"),
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Runs the two-level calibration of `model` on `data` (optional straight-line `lines` for
+/// the base-frame seed). `progress` is called with the number of finished starts.
+pub fn calibrate(
+    model: &Model,
+    data: &Dataset,
+    lines: Option<&Dataset>,
+    opts: &CalibOptions,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<CalibResult, CalibError> {
+    check(opts)?;
+    let inner_ids = choose_inner(data, opts)?;
+    let rows = prepare(data, &inner_ids, opts.torque_constants)?;
+    let m0 = start_model(model, data, opts)?;
+    let p0 = m0.params();
+    let k_ref: [(f64, f64); 3] = std::array::from_fn(|k| {
+        (
+            p0[IDX_KLIN + k],
+            if opts.linear_only {
+                1.0
+            } else {
+                p0[IDX_KCUB + k]
+            },
+        )
+    });
+    let free: Vec<usize> = (0..PARAM_COUNT)
+        .filter(|&i| !(opts.linear_only && i >= IDX_KCUB))
+        .collect();
+    let map = ParamMap {
+        free,
+        k_ref,
+        linear_only: opts.linear_only,
+    };
+    let s0 = map.scaled(&p0);
+    if 6 * rows.len() < 2 * map.free.len() {
+        return Err(CalibError::Data(format!(
+            "{} rows are too few for {} parameters",
+            rows.len(),
+            map.free.len()
+        )));
+    }
+    let psi0 = seed_base(&m0, &rows, lines)?;
+    let whitening =
+        (opts.weighting == Weighting::Gls).then(|| whitening(data, &m0, &rows, opts.r_max));
+    let noise = match &whitening {
+        // whitened residuals have unit variance and their correlation is modelled
+        Some(_) => 1.0,
+        None => {
+            // Resolver errors repeat at a configuration (same angles for every repeat and
+            // load), so rows of one configuration are not independent: scale the noise by
+            // √(rows per configuration) when judging what the data can see.
+            let configs = config_groups(data).len();
+            opts.noise_level
+                .unwrap_or_else(|| noise_level(data, opts.r_max))
+                * (rows.len() as f64 / configs as f64).sqrt()
+        }
+    };
+
+    // Weak directions from the SVD at the start.
+    let mut probe = Outer {
+        base_model: &m0,
+        rows: &rows,
+        map: &map,
+        opts,
+        priors: &[],
+        whiten: whitening.as_ref(),
+        s: s0.clone(),
+        model: None,
+        psi: psi0,
+    };
+    levenberg_marquardt::LeastSquaresProblem::set_params(&mut probe, &s0);
+    let j0 = probe
+        .evaluate(true)
+        .and_then(|(_, j)| j)
+        .ok_or_else(|| CalibError::Failed("no Jacobian at the start".into()))?;
+    let j0 = j0.rows(0, 6 * rows.len()).into_owned();
+    let (weak, mut priors) = weak_directions(&j0, &map, noise, opts.weak_threshold);
+    // Stiffness is known from the seed to within an order of magnitude: a mild prior
+    // (standard deviation ln 10 in log-stiffness) keeps a term the data stop seeing (a cubic
+    // coefficient sliding towards 0, where its log loses all sensitivity) from running off.
+    for (c, &i) in map.free.iter().enumerate() {
+        if i >= IDX_KLIN {
+            let mut v = DVector::zeros(map.free.len());
+            v[c] = noise / std::f64::consts::LN_10;
+            priors.push(v);
+        }
+    }
+
+    // Starts: the nominal one, then random ones within the tolerances.
+    let mut rng = Pcg64::seed_from_u64(opts.seed);
+    let starts: Vec<DVector<f64>> = (0..opts.starts)
+        .map(|k| {
+            if k == 0 {
+                s0.clone()
+            } else {
+                DVector::from_iterator(
+                    s0.len(),
+                    map.free.iter().enumerate().map(|(c, &i)| {
+                        s0[c]
+                            + if i < IDX_KLIN {
+                                rng.random_range(-1.0..1.0)
+                            } else {
+                                rng.random_range(-0.5..0.5)
+                            }
+                    }),
+                )
+            }
+        })
+        .collect();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let runs: Vec<Result<StartOutcome, String>> = starts
+        .par_iter()
+        .map(|s| {
+            let mut pb = Outer {
+                base_model: &m0,
+                rows: &rows,
+                map: &map,
+                opts,
+                priors: &priors,
+                whiten: whitening.as_ref(),
+                s: s.clone(),
+                model: None,
+                psi: psi0,
+            };
+            levenberg_marquardt::LeastSquaresProblem::set_params(&mut pb, s);
+            let (pb, report) = levenberg_marquardt::LevenbergMarquardt::new()
+                .with_patience(200)
+                .minimize(pb);
+            progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+            use levenberg_marquardt::TerminationReason as T;
+            // A step that can no longer reduce the cost is a converged fit, not a failure.
+            let ok = report.termination.was_successful()
+                || matches!(
+                    report.termination,
+                    T::LostPatience | T::NoImprovementPossible(_) | T::Orthogonal
+                );
+            if ok && pb.model.is_some() && report.objective_function.is_finite() {
+                Ok((pb.s.clone(), 2.0 * report.objective_function, pb.psi))
+            } else {
+                Err(format!("{:?}", report.termination))
+            }
+        })
+        .collect();
+    let start_costs: Vec<f64> = runs
+        .iter()
+        .map(|r| r.as_ref().map_or(f64::NAN, |r| r.1))
+        .collect();
+    let reasons: Vec<String> = runs
+        .iter()
+        .filter_map(|r| r.as_ref().err().cloned())
+        .collect();
+    let (s, cost, psi) = runs
+        .into_iter()
+        .flatten()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .ok_or_else(|| CalibError::Failed(format!("no start converged: {}", reasons.join("; "))))?;
+
+    // Final model, Jacobian, covariance.
+    let mut fin = Outer {
+        base_model: &m0,
+        rows: &rows,
+        map: &map,
+        opts,
+        priors: &priors,
+        whiten: whitening.as_ref(),
+        s: s.clone(),
+        model: None,
+        psi,
+    };
+    levenberg_marquardt::LeastSquaresProblem::set_params(&mut fin, &s);
+    let (r, j) = fin
+        .evaluate(true)
+        .ok_or_else(|| CalibError::Failed("final evaluation".into()))?;
+    let j = j.ok_or_else(|| CalibError::Failed("final Jacobian".into()))?;
+    let m_data = 6 * rows.len();
+    let data_cost = r.rows(0, m_data).norm_squared();
+    let dof = (m_data as f64 - map.free.len() as f64).max(1.0);
+    let s2 = data_cost / dof;
+    let jtj = j.transpose() * &j;
+    let cov = jtj
+        .clone()
+        .pseudo_inverse(1e-14)
+        .map_err(|e| CalibError::Failed(e.to_string()))?
+        * s2;
+    let p = map.physical(&s);
+    let chain = map.chain(&p);
+    let mut std_errors = [None; PARAM_COUNT];
+    for (c, &i) in map.free.iter().enumerate() {
+        std_errors[i] = Some(cov[(c, c)].max(0.0).sqrt() * chain[c]);
+    }
+    let sv = j.rows(0, m_data).into_owned().singular_values();
+    let mut singular_values: Vec<f64> = sv.iter().cloned().collect();
+    singular_values.sort_by(|a, b| b.total_cmp(a));
+    let model = fin
+        .model
+        .clone()
+        .ok_or_else(|| CalibError::Failed("final model".into()))?;
+    let model = model.with_base_from_instrument(&base::frame_from_psi(&fin.psi))?;
+    Ok(CalibResult {
+        model,
+        cost,
+        data_cost,
+        std_errors,
+        singular_values,
+        weak,
+        start_costs,
+        noise_level: noise,
+        psi: fin.psi,
+    })
+}
+
+/// Row indices grouped by configuration id (all loads and repeats), in first-appearance
+/// order.
+fn config_groups(data: &Dataset) -> Vec<Vec<usize>> {
+    let mut ids: Vec<&str> = Vec::new();
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (k, r) in data.rows.iter().enumerate() {
+        match ids.iter().position(|i| *i == r.config_id) {
+            Some(g) => groups[g].push(k),
+            None => {
+                ids.push(&r.config_id);
+                groups.push(vec![k]);
+            }
+        }
+    }
+    groups
+}
+
+/// The GLS weights: σ_e from the repeat scatter of the data (pooled within configuration and
+/// load, per residual component; the sidecar's instrument noise without repeats), σ_u from
+/// the resolver uncertainty (sidecar or 0.64 arcmin) through the model's Jacobian, averaged
+/// over the configurations.
+fn whitening(data: &Dataset, model: &Model, rows: &[Prepared], r_max: f64) -> Whitening {
+    let res_arcmin = data
+        .meta
+        .as_ref()
+        .and_then(|m| m.noise)
+        .map_or(0.64, |n| n.resolver_arcmin);
+    let pos_noise = data
+        .meta
+        .as_ref()
+        .and_then(|m| m.noise)
+        .map_or(12.1e-6, |n| n.position_m);
+    // σ_e from repeats
+    let (mut ss, mut dof) = ([0.0; 6], 0usize);
+    for g in data.groups() {
+        if g.len() < 2 {
+            continue;
+        }
+        let n = g.len() as f64;
+        let mean_p = g
+            .iter()
+            .map(|&k| rows[k].meas.translation.vector)
+            .sum::<nalgebra::Vector3<f64>>()
+            / n;
+        let r0 = rows[g[0]].meas.rotation;
+        let devs: Vec<nalgebra::Vector3<f64>> = g
+            .iter()
+            .map(|&k| crate::model::rotation_log(&(rows[k].meas.rotation * r0.inverse())))
+            .collect();
+        let mean_r = devs.iter().sum::<nalgebra::Vector3<f64>>() / n;
+        for (i, &k) in g.iter().enumerate() {
+            let dp = (rows[k].meas.translation.vector - mean_p) / r_max;
+            let dr = devs[i] - mean_r;
+            for c in 0..3 {
+                ss[c] += dp[c] * dp[c];
+                ss[3 + c] += dr[c] * dr[c];
+            }
+        }
+        dof += g.len() - 1;
+    }
+    let fallback = [
+        pos_noise / 3f64.sqrt() / r_max,
+        pos_noise / 3f64.sqrt() / r_max,
+        pos_noise / 3f64.sqrt() / r_max,
+        1e-4,
+        1e-4,
+        1e-4,
+    ];
+    // Torque noise moves the modelled deflection from row to row: its repeat scatter per
+    // joint, through the (seed) stiffness and the Jacobian, adds to σ_e.
+    let (mut tss, mut tdof) = ([0.0; 6], 0usize);
+    for g in data.groups() {
+        if g.len() < 2 {
+            continue;
+        }
+        let n = g.len() as f64;
+        for j in 0..6 {
+            let mean = g.iter().map(|&k| rows[k].tau[j]).sum::<f64>() / n;
+            tss[j] += g
+                .iter()
+                .map(|&k| (rows[k].tau[j] - mean).powi(2))
+                .sum::<f64>();
+        }
+        tdof += g.len() - 1;
+    }
+    let sigma_defl: [f64; 6] = std::array::from_fn(|j| match model.stiffness(j) {
+        Some(k) if tdof > 0 => (tss[j] / tdof as f64).sqrt() / k.klin,
+        _ => 0.0,
+    });
+    // σ_u: resolver σ through the Jacobian; both averaged over the rows' configurations
+    let sr = res_arcmin * crate::accuracy::ARCMIN;
+    let (mut acc, mut tacc) = ([0.0; 6], [0.0; 6]);
+    for r in rows {
+        let j = model.jacobian(&model.link_from_motor(&r.q, &r.tau));
+        for c in 0..6 {
+            let scale = if c < 3 { 1.0 / r_max } else { 1.0 };
+            acc[c] += (0..6)
+                .map(|k| (j[(c, k)] * sr * scale).powi(2))
+                .sum::<f64>();
+            tacc[c] += (0..6)
+                .map(|k| (j[(c, k)] * sigma_defl[k] * scale).powi(2))
+                .sum::<f64>();
+        }
+    }
+    let n = rows.len().max(1) as f64;
+    let sigma_e: [f64; 6] = std::array::from_fn(|c| {
+        let pose = if dof > 0 {
+            (ss[c] / dof as f64).sqrt().max(fallback[c] * 1e-3)
+        } else {
+            fallback[c]
+        };
+        (pose * pose + tacc[c] / n).sqrt()
+    });
+    let sigma_u: [f64; 6] = std::array::from_fn(|c| (acc[c] / n).sqrt().max(1e-12));
+    Whitening {
+        groups: config_groups(data),
+        sigma_e,
+        sigma_u,
+    }
+}
+
+/// Residual noise per component (paper units): instrument noise and the resolver floor
+/// (σ_res at a ~0.8 m lever), from the sidecar or the paper's values.
+fn noise_level(data: &Dataset, r_max: f64) -> f64 {
+    let (pos, res_arcmin) = data
+        .meta
+        .as_ref()
+        .and_then(|m| m.noise)
+        .map_or((12.1e-6, 0.64), |n| (n.position_m, n.resolver_arcmin));
+    let res = res_arcmin * crate::accuracy::ARCMIN * 0.8;
+    ((pos * pos / 3.0 + res * res).sqrt()) / r_max
+}
+
+/// Weak directions of the scaled data Jacobian and their prior rows.
+fn weak_directions(
+    j: &DMatrix<f64>,
+    map: &ParamMap,
+    noise: f64,
+    threshold: f64,
+) -> (Vec<WeakDirection>, Vec<DVector<f64>>) {
+    let svd = j.clone().svd(false, true);
+    let Some(vt) = svd.v_t else {
+        return (Vec::new(), Vec::new());
+    };
+    let names = param_names();
+    let mut weak = Vec::new();
+    let mut priors = Vec::new();
+    // Noise-free data still cannot see structurally null directions: keep a floor.
+    let noise = noise.max(1e-7);
+    let sv_max = svd.singular_values.max();
+    for (k, &sv) in svd.singular_values.iter().enumerate() {
+        let se = if sv > 0.0 { noise / sv } else { f64::INFINITY };
+        if se > threshold || sv < 1e-8 * sv_max {
+            let v = vt.row(k).transpose();
+            let mut params: Vec<(String, f64)> = map
+                .free
+                .iter()
+                .enumerate()
+                .filter(|(c, _)| v[*c].abs() >= 0.2)
+                .map(|(c, &i)| (names[i].to_string(), v[c]))
+                .collect();
+            params.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+            weak.push(WeakDirection {
+                singular_value: sv,
+                std_error: se,
+                params,
+            });
+            priors.push(v * noise);
+        }
+    }
+    (weak, priors)
+}
+
+/// Position and orientation errors of `model` (with its base frame) on `data`, per load.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct ErrorSummary {
+    /// Load, N.
+    pub load_n: f64,
+    /// Rows.
+    pub rows: usize,
+    /// Mean position error, mm.
+    pub mean_mm: f64,
+    /// Peak position error, mm.
+    pub peak_mm: f64,
+    /// Mean orientation error, degrees.
+    pub mean_orient_deg: f64,
+}
+
+/// Errors of `model` on `data`: one summary per load, ascending. The model's own
+/// `base_from_instrument` maps measurements into the base frame.
+pub fn evaluate(
+    model: &Model,
+    data: &Dataset,
+    kt: Option<[f64; 6]>,
+) -> Result<Vec<ErrorSummary>, CalibError> {
+    let rows = prepare(data, &[], kt)?;
+    let base = *model.base_from_instrument();
+    let mut out: Vec<ErrorSummary> = data
+        .loads()
+        .into_iter()
+        .map(|l| ErrorSummary {
+            load_n: l,
+            ..Default::default()
+        })
+        .collect();
+    for r in &rows {
+        let pred = model.fk(&model.link_from_motor(&r.q, &r.tau));
+        let meas = base * r.meas;
+        let e = crate::model::pose_error(&pred, &meas);
+        let pe = e.fixed_rows::<3>(0).norm() * 1e3;
+        let oe = e.fixed_rows::<3>(3).norm().to_degrees();
+        if let Some(s) = out.iter_mut().find(|s| s.load_n == r.load_n) {
+            s.rows += 1;
+            s.mean_mm += pe;
+            s.peak_mm = s.peak_mm.max(pe);
+            s.mean_orient_deg += oe;
+        }
+    }
+    for s in &mut out {
+        s.mean_mm /= s.rows.max(1) as f64;
+        s.mean_orient_deg /= s.rows.max(1) as f64;
+    }
+    Ok(out)
+}
+
+/// The base frame alone (inner level on `model`'s geometry): what "before calibration"
+/// means — the nominal model placed as well as it can be in the instrument frame.
+pub fn fit_base_only(
+    model: &Model,
+    data: &Dataset,
+    lines: Option<&Dataset>,
+    opts: &CalibOptions,
+) -> Result<Model, CalibError> {
+    let inner_ids = choose_inner(data, opts)?;
+    let rows = prepare(data, &inner_ids, opts.torque_constants)?;
+    let mut m = model.clone();
+    if let Some(t) = data.meta.as_ref().and_then(|m| m.tool) {
+        m = m.with_tool(&frame_from_pose(t.translation, t.quaternion))?;
+    }
+    let psi0 = seed_base(&m, &rows, lines)?;
+    let pairs: Vec<(Frame, Frame)> = rows
+        .iter()
+        .filter(|r| r.inner)
+        .map(|r| (m.fk(&m.link_from_motor(&r.q, &r.tau)), r.meas))
+        .collect();
+    let (psi, _) = base::fit_psi(&pairs, &psi0, opts.r_max);
+    Ok(m.with_base_from_instrument(&base::frame_from_psi(&psi))?)
+}
+
+/// The resolver floor at `data`'s poses: the mean position error (mm) that joint errors of
+/// `sigma_rad` (1σ, every joint) alone cause there, per load (the linearised bound of
+/// [`crate::accuracy`]), evaluated with `model` at the rows' link angles.
+pub fn resolver_floor(
+    model: &Model,
+    data: &Dataset,
+    sigma_rad: f64,
+    kt: Option<[f64; 6]>,
+) -> Result<Vec<(f64, f64)>, CalibError> {
+    let rows = prepare(data, &[], kt)?;
+    let mut out: Vec<(f64, f64, usize)> = data.loads().into_iter().map(|l| (l, 0.0, 0)).collect();
+    for r in &rows {
+        let q = model.link_from_motor(&r.q, &r.tau);
+        let cov = crate::accuracy::linear::position_covariance(model, &q, &[sigma_rad; 6]);
+        let mean = crate::accuracy::linear::norm_stats(&cov).mean * 1e3;
+        if let Some(o) = out.iter_mut().find(|o| o.0 == r.load_n) {
+            o.1 += mean;
+            o.2 += 1;
+        }
+    }
+    Ok(out
+        .into_iter()
+        .map(|(l, s, n)| (l, s / n.max(1) as f64))
+        .collect())
+}
+
+/// `base_from_instrument` with the joint-1 departures that commute with q1 (δd1 along and
+/// δθ1 about the J1 axis) folded in: the part of the base frame the data can tell from the
+/// geometry (a free base frame absorbs exactly these two).
+pub fn canonical_base(model: &Model) -> Frame {
+    let e = model.data().departures[0];
+    let f = Frame::from_parts(
+        nalgebra::Translation3::new(0.0, 0.0, e.dd),
+        nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::z_axis(), e.dtheta),
+    );
+    f.inverse() * model.base_from_instrument()
+}
+
+/// Residual vector of one row (paper units) for external callers (reports, discovery).
+pub fn row_residual(
+    model: &Model,
+    q: &[f64; 6],
+    tau: &[f64; 6],
+    meas: &Frame,
+    r_max: f64,
+) -> Vector6<f64> {
+    let pred = model.fk(&model.link_from_motor(q, tau));
+    let b = *model.base_from_instrument();
+    base::residual_and_psi_jacobian(&pred, meas, &base::psi_from_frame(&b), &b, r_max).0
+}

@@ -1,0 +1,222 @@
+//! The calibration workflow end to end, as plain data: before / after tables on the
+//! calibration set, the paper's validation comparison (nominal vs linear stiffness vs full
+//! model), identified parameters with standard errors, identifiability diagnostics.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use super::dataset::Dataset;
+use super::fit::{
+    CalibError, CalibOptions, CalibResult, ErrorSummary, WeakDirection, calibrate, evaluate,
+    fit_base_only, resolver_floor,
+};
+use crate::model::{Model, PARAM_COUNT, param_names, param_units};
+
+/// Errors per load, keyed by the load in newtons (as text, for JSON).
+pub type ByLoad = BTreeMap<String, ErrorSummary>;
+
+fn by_load(v: Vec<ErrorSummary>) -> ByLoad {
+    v.into_iter()
+        .map(|s| (format!("{}", s.load_n), s))
+        .collect()
+}
+
+/// One identified parameter.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ParamReport {
+    /// Name (`da1`, `dbeta2`, `klin2`, …).
+    pub name: String,
+    /// Value in `unit`.
+    pub value: f64,
+    /// Standard error in `unit` (absent when fixed).
+    pub std_error: Option<f64>,
+    /// Unit.
+    pub unit: String,
+}
+
+/// Validation of the three models on held-out data.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Validation {
+    /// Nominal model (base frame fitted).
+    pub before: ByLoad,
+    /// Linear-stiffness calibration.
+    pub linear: ByLoad,
+    /// Full (linear + cubic) calibration.
+    pub after: ByLoad,
+    /// Resolver floor at the validation poses (mean error, mm, per load).
+    pub floor_mm: BTreeMap<String, f64>,
+}
+
+/// Everything `pa10 calibrate` reports.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// Rows, configurations and loads of the calibration set.
+    pub rows: usize,
+    /// Distinct configurations.
+    pub configurations: usize,
+    /// The nominal model's errors on the calibration set (base frame fitted).
+    pub before: ByLoad,
+    /// The calibrated model's errors on the calibration set.
+    pub after: ByLoad,
+    /// Validation, when a validation set was given.
+    pub validation: Option<Validation>,
+    /// Identified stiffness of J2, J3, J5.
+    pub stiffness: Stiffness3,
+    /// All 30 parameters.
+    pub params: Vec<ParamReport>,
+    /// Singular values of the scaled identification Jacobian, descending.
+    pub singular_values: Vec<f64>,
+    /// Their ratio, largest / smallest, over the directions that are not structurally null.
+    pub condition_number: f64,
+    /// Structurally null directions (singular value below 1e-8 of the largest).
+    pub null_directions: usize,
+    /// Parameter combinations the data cannot determine (held near nominal / seed).
+    pub weak: Vec<WeakDirection>,
+    /// Final cost per start.
+    pub start_costs: Vec<f64>,
+    /// Options used.
+    pub epsilon: f64,
+    /// Weighting used.
+    pub weighting: super::fit::Weighting,
+    /// Linear-only fit.
+    pub linear_only: bool,
+    /// Seconds the fits took.
+    pub elapsed_s: f64,
+}
+
+/// Stiffness of J2, J3, J5.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Stiffness3 {
+    /// Klin, N·m/rad.
+    pub klin: [f64; 3],
+    /// Kcub, N·m/rad³.
+    pub kcub: [f64; 3],
+}
+
+/// The calibrated model and its report.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The calibration.
+    pub result: CalibResult,
+    /// The nominal model with its base frame fitted (the "before").
+    pub before_model: Model,
+    /// The linear-stiffness calibration, when a validation set asked for the comparison.
+    pub linear_model: Option<Model>,
+    /// The report.
+    pub report: Report,
+}
+
+/// Calibrates `model` on `data`, and validates on `val` when given.
+pub fn run(
+    model: &Model,
+    data: &Dataset,
+    lines: Option<&Dataset>,
+    val: Option<&Dataset>,
+    opts: &CalibOptions,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<Outcome, CalibError> {
+    let t0 = std::time::Instant::now();
+    let result = calibrate(model, data, lines, opts, progress)?;
+    let before_model = fit_base_only(model, data, lines, opts)?;
+    let linear_model = match val {
+        Some(_) if !opts.linear_only => Some(
+            calibrate(
+                model,
+                data,
+                lines,
+                &CalibOptions {
+                    linear_only: true,
+                    ..opts.clone()
+                },
+                &|_| {},
+            )?
+            .model,
+        ),
+        _ => None,
+    };
+    let elapsed_s = t0.elapsed().as_secs_f64();
+    let kt = opts.torque_constants;
+    let validation = match val {
+        Some(v) => {
+            let sigma = data
+                .meta
+                .as_ref()
+                .and_then(|m| m.noise)
+                .map_or(0.64, |n| n.resolver_arcmin)
+                * crate::accuracy::ARCMIN;
+            Some(Validation {
+                before: by_load(evaluate(&before_model, v, kt)?),
+                linear: by_load(evaluate(
+                    linear_model.as_ref().unwrap_or(&result.model),
+                    v,
+                    kt,
+                )?),
+                after: by_load(evaluate(&result.model, v, kt)?),
+                floor_mm: resolver_floor(&result.model, v, sigma, kt)?
+                    .into_iter()
+                    .map(|(l, f)| (format!("{l}"), f))
+                    .collect(),
+            })
+        }
+        None => None,
+    };
+    let p = result.model.params();
+    let names = param_names();
+    let units = param_units();
+    let params = (0..PARAM_COUNT)
+        .map(|i| ParamReport {
+            name: names[i].into(),
+            value: p[i],
+            std_error: result.std_errors[i],
+            unit: units[i].into(),
+        })
+        .collect();
+    // Structurally null directions (a free base frame absorbs δd1 and δθ1 exactly) would make
+    // the ratio meaningless: count them apart and condition the rest.
+    let sv_max = result.singular_values.first().copied().unwrap_or(0.0);
+    let nz: Vec<f64> = result
+        .singular_values
+        .iter()
+        .cloned()
+        .filter(|s| *s > 1e-8 * sv_max)
+        .collect();
+    let null_directions = result.singular_values.len() - nz.len();
+    let condition_number = match (nz.first(), nz.last()) {
+        (Some(a), Some(b)) => a / b,
+        _ => f64::INFINITY,
+    };
+    let configurations = {
+        let mut ids: Vec<&str> = data.rows.iter().map(|r| r.config_id.as_str()).collect();
+        ids.sort_unstable();
+        ids.dedup();
+        ids.len()
+    };
+    let report = Report {
+        rows: data.rows.len(),
+        configurations,
+        before: by_load(evaluate(&before_model, data, kt)?),
+        after: by_load(evaluate(&result.model, data, kt)?),
+        validation,
+        stiffness: Stiffness3 {
+            klin: [p[24], p[25], p[26]],
+            kcub: [p[27], p[28], p[29]],
+        },
+        params,
+        singular_values: result.singular_values.clone(),
+        condition_number,
+        null_directions,
+        weak: result.weak.clone(),
+        start_costs: result.start_costs.clone(),
+        epsilon: opts.epsilon,
+        weighting: opts.weighting,
+        linear_only: opts.linear_only,
+        elapsed_s,
+    };
+    Ok(Outcome {
+        result,
+        before_model,
+        linear_model,
+        report,
+    })
+}

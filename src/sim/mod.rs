@@ -1,0 +1,215 @@
+//! The simulated PA10: a hidden "true" robot and the physics of measuring it.
+//!
+//! [`TrueRobot`] owns the truth: geometry departures, joint springs, masses (tooling
+//! included), the instrument's placement, and a repeatable resolver error per joint. Only
+//! the simulator reads it; calibration, discovery and the daemon see measurements. The
+//! [`experiment`] module builds the seed paper's measurement campaign on top of it.
+
+pub mod experiment;
+
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
+use rand::{RngExt, SeedableRng};
+use rand_distr::{Distribution, StandardNormal};
+use rand_pcg::Pcg64;
+
+use crate::accuracy::ARCMIN;
+use crate::calib::dataset::{Effort, Row};
+use crate::model::{Body, ExternalLoad, Frame, Model, ModelError, PoseData, Stiffness};
+
+/// The seed paper's manufacturing tolerances: a (m), α (rad), d (m), β (rad), θ (rad).
+pub const TOLERANCES: [f64; 5] = [0.25e-3, 1e-3, 0.25e-3, 1e-3, 5e-4];
+
+/// The seed paper's identified stiffness of J2, J3, J5: (Klin N·m/rad, Kcub N·m/rad³).
+pub const PAPER_STIFFNESS: [(f64, f64); 3] = [(1.98e4, 3.35e7), (1.27e4, 1.46e7), (2.56e3, 3.83e7)];
+
+/// Noise of the simulated sensors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimNoise {
+    /// Instrument position noise, m (3-D rms; 12.1 µm for the paper's CMM).
+    pub position_m: f64,
+    /// Instrument orientation noise, rad (3-D rms; the ball triad's ~0.1 m span).
+    pub orientation_rad: f64,
+    /// Resolver error, rad (rms of the repeatable error function per joint).
+    pub resolver_rad: f64,
+    /// Servo settling scatter between repeats, rad (1σ).
+    pub settle_rad: f64,
+    /// Torque measurement noise: relative (1σ) and absolute (N·m, 1σ).
+    pub torque_rel: f64,
+    /// Absolute torque noise, N·m (1σ).
+    pub torque_abs_nm: f64,
+}
+
+impl Default for SimNoise {
+    fn default() -> Self {
+        Self {
+            position_m: 12.1e-6,
+            orientation_rad: 12.1e-6 / 0.1,
+            resolver_rad: 0.64 * ARCMIN,
+            settle_rad: 1e-6,
+            torque_rel: 0.01,
+            torque_abs_nm: 0.2,
+        }
+    }
+}
+
+/// One harmonic of a resolver error: amplitude (rad), frequency (cycles per link radian ×
+/// 2π), phase (rad).
+type Harmonic = (f64, f64, f64);
+
+/// A hidden true robot.
+#[derive(Debug, Clone)]
+pub struct TrueRobot {
+    /// True geometry, springs, masses (tooling included), tool and instrument placement.
+    pub model: Model,
+    /// Sensor noise levels.
+    pub noise: SimNoise,
+    resolver: [[Harmonic; 3]; 6],
+}
+
+fn gauss(rng: &mut Pcg64) -> f64 {
+    StandardNormal.sample(rng)
+}
+
+impl TrueRobot {
+    /// Draws a true robot from `seed`: departures uniform within the paper's tolerances,
+    /// stiffness of J2, J3, J5 within ±10 % (linear) and ±20 % (cubic) of the paper's,
+    /// link masses within ±10 % plus a 2.4 kg tooling apparatus, the instrument placed
+    /// 0.5–1 m away at an arbitrary yaw with sub-degree tilts, and a repeatable resolver
+    /// error per joint (three harmonics of the motor revolution, rms `noise.resolver_rad`).
+    /// `tool` is the flange → target transform (known to the user too).
+    pub fn draw(
+        seed: u64,
+        nominal: &Model,
+        tool: &Frame,
+        noise: SimNoise,
+    ) -> Result<Self, ModelError> {
+        let mut rng = Pcg64::seed_from_u64(seed);
+        let mut d = nominal.data().clone();
+        d.robot = format!("simulated PA10-6CE, truth drawn from seed {seed}");
+        for (j, e) in d.departures.iter_mut().enumerate() {
+            let mut u = |tol: f64| rng.random_range(-tol..tol);
+            e.da = u(TOLERANCES[0]);
+            e.dalpha = u(TOLERANCES[1]);
+            if j == 1 {
+                e.dbeta = u(TOLERANCES[3]);
+                e.dd = 0.0;
+            } else {
+                e.dd = u(TOLERANCES[2]);
+                e.dbeta = 0.0;
+            }
+            e.dtheta = u(TOLERANCES[4]);
+        }
+        for (k, &j) in crate::model::STIFF_JOINTS.iter().enumerate() {
+            let (kl, kc) = PAPER_STIFFNESS[k];
+            d.stiffness[j] = Some(Stiffness {
+                klin: kl * rng.random_range(0.9..1.1),
+                kcub: kc * rng.random_range(0.8..1.2),
+            });
+        }
+        for b in &mut d.bodies {
+            b.mass *= rng.random_range(0.9..1.1);
+        }
+        let tool_len = tool.translation.vector.norm();
+        d.bodies.push(Body {
+            name: "tooling apparatus".into(),
+            frame: 6,
+            mass: 2.4,
+            com: [0.0, 0.0, 0.5 * tool_len],
+        });
+        d.tool = pose_data(tool);
+        let yaw = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+        let rot = UnitQuaternion::from_euler_angles(
+            rng.random_range(-0.01..0.01),
+            rng.random_range(-0.01..0.01),
+            yaw,
+        );
+        let dist = rng.random_range(0.5..1.0);
+        let ang = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+        let t = Translation3::new(
+            dist * ang.cos(),
+            dist * ang.sin(),
+            rng.random_range(-0.3..0.0),
+        );
+        d.base_from_instrument = pose_data(&Frame::from_parts(t, rot.to_rotation_matrix()));
+        let model = Model::new(d)?;
+        // Resolver error: harmonics at 1, 2 and 4 motor revolutions per cycle of a 100:1
+        // drive, amplitudes scaled so the rms over an angle is `resolver_rad`.
+        let mut resolver = [[(0.0, 0.0, 0.0); 3]; 6];
+        for h in resolver.iter_mut() {
+            let w: [f64; 3] = std::array::from_fn(|_| rng.random_range(0.2..1.0));
+            let scale = noise.resolver_rad * (2.0 / w.iter().map(|x| x * x).sum::<f64>()).sqrt();
+            for (k, slot) in h.iter_mut().enumerate() {
+                *slot = (
+                    w[k] * scale,
+                    100.0 * (1 << k) as f64,
+                    rng.random_range(0.0..std::f64::consts::TAU),
+                );
+            }
+        }
+        Ok(Self {
+            model,
+            noise,
+            resolver,
+        })
+    }
+
+    /// The repeatable resolver error of joint `j` at true motor angle `q` (rad).
+    pub fn resolver_error(&self, j: usize, q: f64) -> f64 {
+        self.resolver[j]
+            .iter()
+            .map(|&(a, f, p)| a * (f * q + p).sin())
+            .sum()
+    }
+
+    /// One static measurement: the servo holds the resolver reading at `q_cmd` (motor side,
+    /// rad) with `load_n` newtons hung at the tool. Returns the dataset row the user would
+    /// record: resolver angles, measured torques, the instrument's measurement of the target.
+    pub fn measure(
+        &self,
+        config_id: &str,
+        q_cmd: &[f64; 6],
+        load_n: f64,
+        rng: &mut Pcg64,
+    ) -> Result<Row, ModelError> {
+        let m = &self.model;
+        // The servo settles where the resolver reads q_cmd (plus a little scatter): the true
+        // motor angle is q_cmd − e(true angle).
+        let reading: [f64; 6] =
+            std::array::from_fn(|j| q_cmd[j] + self.noise.settle_rad * gauss(rng));
+        let mut motor = reading;
+        for _ in 0..4 {
+            motor = std::array::from_fn(|j| reading[j] - self.resolver_error(j, motor[j]));
+        }
+        let load = ExternalLoad::hung(load_n, &m.gravity());
+        let (q_link, tau) = m.link_from_motor_static(&motor, &load)?;
+        let tau_meas: [f64; 6] = std::array::from_fn(|j| {
+            tau[j] * (1.0 + self.noise.torque_rel * gauss(rng))
+                + self.noise.torque_abs_nm * gauss(rng)
+        });
+        let truth = m.base_from_instrument().inverse() * m.fk(&q_link);
+        let s3 = 1.0 / 3f64.sqrt();
+        let dp = Vector3::new(gauss(rng), gauss(rng), gauss(rng)) * (self.noise.position_m * s3);
+        let dr =
+            Vector3::new(gauss(rng), gauss(rng), gauss(rng)) * (self.noise.orientation_rad * s3);
+        let measured = Frame::from_parts(
+            Translation3::from(truth.translation.vector + dp),
+            nalgebra::Rotation3::new(dr) * truth.rotation,
+        );
+        Ok(Row {
+            config_id: config_id.to_string(),
+            load_n,
+            q: reading,
+            effort: Effort::Torque(tau_meas),
+            pose: measured,
+            line: 0,
+        })
+    }
+}
+
+fn pose_data(f: &Frame) -> PoseData {
+    let (translation, quaternion) = crate::model::pose_parts(f);
+    PoseData {
+        translation,
+        quaternion,
+    }
+}
