@@ -237,3 +237,133 @@ fn accuracy_rejects_bad_settings() {
         assert!(err.contains(msg), "{a:?}: {err}");
     }
 }
+
+#[test]
+fn sim_measure_then_calibrate_end_to_end() {
+    let dir = std::env::temp_dir().join(format!("pa10-cal-{}", std::process::id()));
+    let d = dir.to_str().unwrap();
+    let o = pa10(&[
+        "sim",
+        "measure",
+        "--seed",
+        "2",
+        "--repeats",
+        "3",
+        "--out",
+        d,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in [
+        "cal.csv",
+        "cal.meta.yaml",
+        "lines.csv",
+        "val.csv",
+        "truth.yaml",
+    ] {
+        assert!(dir.join(f).exists(), "{f}");
+    }
+    let out = dir.join("calibrated.yaml");
+    let report = dir.join("report");
+    let j = stdout_json(&pa10(&[
+        "calibrate",
+        "--data",
+        &format!("{d}/cal.csv"),
+        "--base-seed",
+        &format!("{d}/lines.csv"),
+        "--validate",
+        &format!("{d}/val.csv"),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+        "--report",
+        report.to_str().unwrap(),
+        "--starts",
+        "2",
+    ]));
+    for load in ["0", "22", "44"] {
+        let b = j["before"][load]["mean_mm"].as_f64().unwrap();
+        let a = j["after"][load]["mean_mm"].as_f64().unwrap();
+        assert!(a < 0.35 && b > 2.0 * a, "{load}: before {b} after {a}");
+        assert!(j["after"][load]["peak_mm"].as_f64().unwrap() >= a);
+        assert!(j["after"][load]["mean_orient_deg"].as_f64().unwrap() < 0.1);
+    }
+    for load in ["0", "45", "90"] {
+        let v = &j["validation"];
+        assert!(
+            v["after"][load]["mean_mm"].as_f64().unwrap()
+                < v["before"][load]["mean_mm"].as_f64().unwrap()
+        );
+        assert!(v["linear"][load]["mean_mm"].as_f64().is_some());
+    }
+    assert_eq!(j["stiffness"]["klin"].as_array().unwrap().len(), 3);
+    assert_eq!(j["stiffness"]["kcub"].as_array().unwrap().len(), 3);
+    assert_eq!(j["params"].as_array().unwrap().len(), 30);
+    for f in [
+        "residuals-before.svg",
+        "residuals-after.svg",
+        "validation-after.svg",
+    ] {
+        assert!(
+            std::fs::read_to_string(report.join(f))
+                .unwrap()
+                .contains("<svg"),
+            "{f}"
+        );
+    }
+    // the calibrated model is a model file fk and model check accept
+    let o = pa10(&["model", "check", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("J2 stiffness"));
+    assert!(
+        pa10(&[
+            "fk",
+            "--model",
+            out.to_str().unwrap(),
+            "0",
+            "0.5",
+            "1",
+            "0",
+            "0.5",
+            "0"
+        ])
+        .status
+        .success()
+    );
+    // the text report
+    let o = pa10(&[
+        "calibrate",
+        "--data",
+        &format!("{d}/cal.csv"),
+        "--out",
+        out.to_str().unwrap(),
+        "--starts",
+        "1",
+    ]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        s.contains("identified parameters")
+            && s.contains("klin2")
+            && s.contains("condition number"),
+        "{s}"
+    );
+
+    // a corrupted row: refused with its line, nothing written
+    let text = std::fs::read_to_string(dir.join("cal.csv")).unwrap();
+    let mut lines: Vec<&str> = text.lines().collect();
+    let bad = lines[7].replacen(",0.0,", ",zero,", 1);
+    lines[7] = &bad;
+    std::fs::write(dir.join("bad.csv"), lines.join("\n")).unwrap();
+    let fresh = dir.join("never.yaml");
+    let o = pa10(&[
+        "calibrate",
+        "--data",
+        &format!("{d}/bad.csv"),
+        "--out",
+        fresh.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("bad.csv:8: column `load_n`"), "{err}");
+    assert!(!fresh.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
