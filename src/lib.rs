@@ -23,6 +23,7 @@
 
 pub mod accuracy;
 pub mod calib;
+pub mod can;
 pub mod model;
 pub mod plot;
 pub mod sim;

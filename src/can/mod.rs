@@ -1,0 +1,12 @@
+//! The CAN layer: the sans-IO protocol codec ([`protocol`]) and the [`CanBus`] abstraction
+//! with its backends ([`virtual_bus`] in-process, `socketcan_bus` on Linux).
+
+pub mod bus;
+pub mod protocol;
+#[cfg(target_os = "linux")]
+pub mod socketcan_bus;
+pub mod virtual_bus;
+
+pub use bus::{BusError, BusEvent, CanBus, Filter};
+pub use protocol::{Frame, Message, bus_load, check_rate, decode, encode};
+pub use virtual_bus::{VirtualBus, VirtualConfig, VirtualEndpoint};
