@@ -8,3 +8,4 @@ mod common;
 mod model;
 mod model_file;
 mod properties;
+mod servo;

@@ -21,7 +21,7 @@ use super::protocol::Frame;
 pub struct VirtualConfig {
     /// Bit rate, bit/s (for the load figure).
     pub bitrate: f64,
-    /// Delivery delay of every frame.
+    /// Delivery delay of every frame (resolved to tokio's 1 ms timer).
     pub latency: Duration,
     /// Probability (0…1) that a frame is lost.
     pub loss: f64,

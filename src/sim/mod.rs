@@ -6,6 +6,7 @@
 //! [`experiment`] module builds the seed paper's measurement campaign on top of it.
 
 pub mod experiment;
+pub mod servo;
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -132,25 +133,45 @@ impl TrueRobot {
         );
         d.base_from_instrument = pose_data(&Frame::from_parts(t, rot.to_rotation_matrix()));
         let model = Model::new(d)?;
-        // Resolver error: harmonics at 1, 2 and 4 motor revolutions per cycle of a 100:1
-        // drive, amplitudes scaled so the rms over an angle is `resolver_rad`.
-        let mut resolver = [[(0.0, 0.0, 0.0); 3]; 6];
-        for h in resolver.iter_mut() {
-            let w: [f64; 3] = std::array::from_fn(|_| rng.random_range(0.2..1.0));
-            let scale = noise.resolver_rad * (2.0 / w.iter().map(|x| x * x).sum::<f64>()).sqrt();
-            for (k, slot) in h.iter_mut().enumerate() {
-                *slot = (
-                    w[k] * scale,
-                    100.0 * (1 << k) as f64,
-                    rng.random_range(0.0..std::f64::consts::TAU),
-                );
-            }
-        }
+        let resolver = resolver_harmonics(&mut rng, &noise);
         Ok(Self {
             model,
             noise,
             resolver,
         })
+    }
+
+    /// What the instrument reports for the robot at link angles `q_link`: the true target pose
+    /// in the instrument frame, with the instrument's position and orientation noise.
+    pub fn observe(&self, q_link: &[f64; 6], rng: &mut Pcg64) -> Frame {
+        let m = &self.model;
+        let truth = m.base_from_instrument().inverse() * m.fk(q_link);
+        let s3 = 1.0 / 3f64.sqrt();
+        let dp = Vector3::new(gauss(rng), gauss(rng), gauss(rng)) * (self.noise.position_m * s3);
+        let dr =
+            Vector3::new(gauss(rng), gauss(rng), gauss(rng)) * (self.noise.orientation_rad * s3);
+        Frame::from_parts(
+            Translation3::from(truth.translation.vector + dp),
+            nalgebra::Rotation3::new(dr) * truth.rotation,
+        )
+    }
+
+    /// The resolver reading (rad) of joint `j` at true motor angle `q`: the angle plus its
+    /// repeatable error.
+    pub fn resolver_reading(&self, j: usize, q: f64) -> f64 {
+        q + self.resolver_error(j, q)
+    }
+
+    /// Wraps a loaded truth model (e.g. a `truth.yaml`) with a resolver error drawn from
+    /// `seed`.
+    pub fn from_model(model: Model, noise: SimNoise, seed: u64) -> Self {
+        let mut rng = Pcg64::seed_from_u64(seed ^ 0x7e50_1e7e);
+        let resolver = resolver_harmonics(&mut rng, &noise);
+        Self {
+            model,
+            noise,
+            resolver,
+        }
     }
 
     /// The repeatable resolver error of joint `j` at true motor angle `q` (rad).
@@ -186,15 +207,7 @@ impl TrueRobot {
             tau[j] * (1.0 + self.noise.torque_rel * gauss(rng))
                 + self.noise.torque_abs_nm * gauss(rng)
         });
-        let truth = m.base_from_instrument().inverse() * m.fk(&q_link);
-        let s3 = 1.0 / 3f64.sqrt();
-        let dp = Vector3::new(gauss(rng), gauss(rng), gauss(rng)) * (self.noise.position_m * s3);
-        let dr =
-            Vector3::new(gauss(rng), gauss(rng), gauss(rng)) * (self.noise.orientation_rad * s3);
-        let measured = Frame::from_parts(
-            Translation3::from(truth.translation.vector + dp),
-            nalgebra::Rotation3::new(dr) * truth.rotation,
-        );
+        let measured = self.observe(&q_link, rng);
         Ok(Row {
             config_id: config_id.to_string(),
             load_n,
@@ -204,6 +217,24 @@ impl TrueRobot {
             line: 0,
         })
     }
+}
+
+/// Resolver error harmonics: at 1, 2 and 4 motor revolutions per cycle of a 100:1 drive,
+/// amplitudes scaled so the rms over an angle is `noise.resolver_rad`.
+fn resolver_harmonics(rng: &mut Pcg64, noise: &SimNoise) -> [[Harmonic; 3]; 6] {
+    let mut resolver = [[(0.0, 0.0, 0.0); 3]; 6];
+    for h in resolver.iter_mut() {
+        let w: [f64; 3] = std::array::from_fn(|_| rng.random_range(0.2..1.0));
+        let scale = noise.resolver_rad * (2.0 / w.iter().map(|x| x * x).sum::<f64>()).sqrt();
+        for (k, slot) in h.iter_mut().enumerate() {
+            *slot = (
+                w[k] * scale,
+                100.0 * (1 << k) as f64,
+                rng.random_range(0.0..std::f64::consts::TAU),
+            );
+        }
+    }
+    resolver
 }
 
 fn pose_data(f: &Frame) -> PoseData {
