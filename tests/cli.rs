@@ -367,3 +367,34 @@ fn sim_measure_then_calibrate_end_to_end() {
     assert!(!fresh.exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn sim_on_a_missing_can_interface_fails_clearly() {
+    let o = pa10(&["sim", "--can", "pa10-no-such-if", "--duration", "0.1"]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("opening CAN interface pa10-no-such-if"),
+        "{err}"
+    );
+    let o = pa10(&["sim"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("needs --can IFACE"));
+    let o = pa10(&["sim", "--can", "x", "--duration", "-1"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--duration must be > 0 s"));
+    let dir = std::env::temp_dir().join(format!("pa10-replay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("bad.log"), "(0.0) vcan0 080#0100\nnot a frame\n").unwrap();
+    let o = pa10(&[
+        "sim",
+        "replay",
+        "--can",
+        "x",
+        dir.join("bad.log").to_str().unwrap(),
+    ]);
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("bad.log:2: not a candump line"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

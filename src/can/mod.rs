@@ -2,6 +2,7 @@
 //! with its backends ([`virtual_bus`] in-process, `socketcan_bus` on Linux).
 
 pub mod bus;
+pub mod candump;
 pub mod protocol;
 #[cfg(target_os = "linux")]
 pub mod socketcan_bus;

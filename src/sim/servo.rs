@@ -57,7 +57,14 @@ impl Default for ServoConfig {
     fn default() -> Self {
         Self {
             tau_s: 0.005,
-            speed_limit: [1.0, 1.0, 2.0, std::f64::consts::TAU, std::f64::consts::TAU, std::f64::consts::TAU],
+            speed_limit: [
+                1.0,
+                1.0,
+                2.0,
+                std::f64::consts::TAU,
+                std::f64::consts::TAU,
+                std::f64::consts::TAU,
+            ],
             current_limit_a: [30.0; 6],
             torque_constants: SIM_TORQUE_CONSTANTS,
             resolver_noise_counts: 0.5,

@@ -13,11 +13,44 @@ use pa10::sim::experiment::{CampaignSpec, paper_campaign};
 
 use crate::model_cmds::ModelArg;
 
-/// `pa10 sim …`
+/// `pa10 sim …`: without a subcommand, run the simulated servo controller on a CAN interface.
+#[derive(Debug, Args)]
+#[command(args_conflicts_with_subcommands = true)]
+pub struct SimArgs {
+    #[command(subcommand)]
+    cmd: Option<SimCmd>,
+    #[command(flatten)]
+    run: RunArgs,
+}
+
+/// `pa10 sim` subcommands.
 #[derive(Debug, Subcommand)]
 pub enum SimCmd {
     /// Generate the seed paper's measurement campaign on a hidden simulated robot.
     Measure(MeasureArgs),
+    /// Replay a candump log onto a CAN interface with its original timing.
+    Replay(ReplayArgs),
+}
+
+/// Running the simulated controller.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    /// SocketCAN interface to serve (e.g. `vcan0`, `can0`).
+    #[arg(long, value_name = "IFACE")]
+    can: Option<String>,
+    /// The hidden true robot (a model YAML, e.g. `pa10 sim measure`'s truth.yaml); drawn from
+    /// `--seed` when absent.
+    #[arg(long, value_name = "FILE")]
+    truth: Option<PathBuf>,
+    /// Seed of the drawn truth and of the sensor noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Log all traffic in candump format to this file.
+    #[arg(long, value_name = "FILE")]
+    log: Option<PathBuf>,
+    /// Stop after this many seconds (default: run until Ctrl-C).
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    duration: Option<f64>,
 }
 
 /// Arguments of `pa10 sim measure`.
@@ -34,9 +67,132 @@ pub struct MeasureArgs {
     repeats: usize,
 }
 
+/// Arguments of `pa10 sim replay`.
+#[derive(Debug, Args)]
+pub struct ReplayArgs {
+    /// SocketCAN interface to send on.
+    #[arg(long, value_name = "IFACE")]
+    can: String,
+    /// The candump log.
+    file: PathBuf,
+}
+
+/// `pa10 sim …`.
+pub fn sim(a: &SimArgs) -> Result<()> {
+    match &a.cmd {
+        Some(SimCmd::Measure(m)) => measure(m),
+        Some(SimCmd::Replay(r)) => replay(r),
+        None => run_sim(&a.run),
+    }
+}
+
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the async runtime")
+}
+
+/// Opens a SocketCAN interface (Linux only).
+#[cfg(target_os = "linux")]
+fn open_can(iface: &str) -> Result<pa10::can::socketcan_bus::SocketCanBus> {
+    pa10::can::socketcan_bus::SocketCanBus::open(iface).with_context(|| {
+        format!("opening CAN interface {iface} (is it up? `ip link set up {iface}`)")
+    })
+}
+
+#[cfg(not(target_os = "linux"))]
+fn open_can(iface: &str) -> Result<pa10::can::VirtualEndpoint> {
+    anyhow::bail!("{iface}: SocketCAN needs Linux")
+}
+
+fn run_sim(a: &RunArgs) -> Result<()> {
+    use pa10::sim::servo::{self, ServoConfig, ServoSim};
+    let Some(iface) = a.can.as_deref() else {
+        anyhow::bail!("`pa10 sim` needs --can IFACE (or a subcommand: measure, replay)");
+    };
+    if let Some(d) = a.duration
+        && !(d.is_finite() && d > 0.0)
+    {
+        anyhow::bail!("--duration must be > 0 s, got {d}");
+    }
+    let noise = pa10::sim::SimNoise::default();
+    let truth = match &a.truth {
+        Some(p) => pa10::sim::TrueRobot::from_model(
+            pa10::model::Model::load(p)
+                .with_context(|| format!("loading truth {}", p.display()))?,
+            noise,
+            a.seed,
+        ),
+        None => {
+            let tool = pa10::model::frame_from_pose([0.0, 0.0, 0.35], [1.0, 0.0, 0.0, 0.0]);
+            pa10::sim::TrueRobot::draw(a.seed, &pa10::model::Model::nominal(), &tool, noise)?
+        }
+    };
+    let home = [0.0, 0.5, 1.2, 0.0, 0.9, 0.0];
+    let sim = std::sync::Arc::new(std::sync::Mutex::new(ServoSim::new(
+        truth,
+        ServoConfig::default(),
+        home,
+        a.seed,
+    )));
+    let mut logger = match &a.log {
+        Some(p) => Some(pa10::can::candump::Logger::new(
+            std::io::BufWriter::new(
+                std::fs::File::create(p).with_context(|| format!("creating {}", p.display()))?,
+            ),
+            iface,
+        )),
+        None => None,
+    };
+    let rt = runtime()?;
+    rt.block_on(async {
+        let bus = open_can(iface)?;
+        let (tx, rx) = tokio::sync::watch::channel(false);
+        let duration = a.duration;
+        tokio::spawn(async move {
+            match duration {
+                Some(d) => tokio::time::sleep(std::time::Duration::from_secs_f64(d)).await,
+                None => {
+                    let _ = tokio::signal::ctrl_c().await;
+                }
+            }
+            let _ = tx.send(true);
+        });
+        eprintln!("pa10 sim: simulated PA10 servo controller on {iface} (Ctrl-C stops)");
+        let wall0 = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs_f64())
+            .unwrap_or(0.0);
+        servo::run(bus, sim, std::time::Duration::from_millis(1), rx, |t, f| {
+            if let Some(l) = logger.as_mut() {
+                let _ = l.log(wall0 + t, f);
+            }
+        })
+        .await
+        .with_context(|| format!("serving {iface}"))?;
+        if let Some(l) = logger.as_mut() {
+            l.flush()?;
+        }
+        anyhow::Ok(())
+    })
+}
+
+fn replay(a: &ReplayArgs) -> Result<()> {
+    let entries = pa10::can::candump::read_log(&a.file).map_err(anyhow::Error::msg)?;
+    let rt = runtime()?;
+    let n = rt.block_on(async {
+        let mut bus = open_can(&a.can)?;
+        pa10::can::candump::replay(&mut bus, &entries)
+            .await
+            .with_context(|| format!("sending on {}", a.can))
+    })?;
+    eprintln!("replayed {n} frames on {}", a.can);
+    Ok(())
+}
+
 /// `pa10 sim measure`.
-pub fn sim(c: &SimCmd) -> Result<()> {
-    let SimCmd::Measure(a) = c;
+fn measure(a: &MeasureArgs) -> Result<()> {
     let spec = CampaignSpec {
         seed: a.seed,
         repeats: a.repeats,

@@ -29,9 +29,8 @@ enum Command {
     Accuracy(accuracy_cmd::AccuracyArgs),
     /// Calibrate the flexible geometric model on measurements (two-level LM, seed paper II-C).
     Calibrate(calib_cmd::CalibrateArgs),
-    /// Simulated robot: measurement campaigns with a hidden truth.
-    #[command(subcommand)]
-    Sim(calib_cmd::SimCmd),
+    /// Simulated PA10: the servo controller on a CAN interface, measurement campaigns, replay.
+    Sim(calib_cmd::SimArgs),
     /// Model files.
     #[command(subcommand)]
     Model(model_cmds::ModelCmd),

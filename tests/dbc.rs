@@ -1,0 +1,129 @@
+//! The DBC file (`docs/pa10.dbc`) against the codec: frames the codec encodes are written
+//! as a candump log, decoded by a real DBC tool (cantools, from PyPI) and compared value by
+//! value with the codec's own decoding. `.ci/run` installs cantools and sets
+//! `PA10_REQUIRE_CANTOOLS=1`, so in CI a missing tool is a failure; elsewhere the test says
+//! it skipped.
+
+use pa10::can::protocol::{
+    self, Command, ErrorCode, Fault, Feedback, Message, Request, ServoState, candump_line, mode,
+    status,
+};
+use serde_json::{Value, json};
+
+fn signals(m: &Message) -> Value {
+    match *m {
+        Message::Control {
+            request,
+            watchdog_ms,
+        } => json!({"request": request as u8, "watchdog_ms": watchdog_ms}),
+        Message::State {
+            state,
+            fault,
+            cycle,
+        } => json!({"state": state as u8, "fault": fault as u8, "cycle": cycle}),
+        Message::Sync { cycle } => json!({ "cycle": cycle }),
+        Message::Error { code, axis, detail } => {
+            json!({"code": code as u8, "axis": axis, "detail": detail})
+        }
+        Message::Command(c) => json!({
+            "brake": c.mode & mode::BRAKE, "servo": (c.mode & mode::SERVO) >> 1,
+            "torque_mode": (c.mode & mode::TORQUE) >> 2, "deadman": (c.mode & mode::DEADMAN) >> 3,
+            "cycle": c.cycle, "speed": c.speed_rad_s(), "torque": c.torque_nm(),
+        }),
+        Message::Feedback(f) => json!({
+            "angle": f.angle_rad(), "current": f.current_a(),
+            "brake_on": f.status & status::BRAKE_ON, "servo_on": (f.status & status::SERVO_ON) >> 1,
+            "fault": (f.status & status::FAULT) >> 2, "watchdog": (f.status & status::WATCHDOG) >> 3,
+            "limit": (f.status & status::LIMIT) >> 4, "deadman": (f.status & status::DEADMAN) >> 5,
+            "cycle": f.cycle,
+        }),
+    }
+}
+
+#[test]
+fn a_real_dbc_tool_decodes_captured_frames_like_the_codec() {
+    let messages = [
+        Message::Control {
+            request: Request::StartControl,
+            watchdog_ms: 50,
+        },
+        Message::State {
+            state: ServoState::Fault,
+            fault: Fault::Watchdog,
+            cycle: 40_000,
+        },
+        Message::Sync { cycle: 65_535 },
+        Message::Error {
+            code: ErrorCode::ResolverGlitch,
+            axis: 5,
+            detail: -123_456,
+        },
+        Message::Command(Command::speed(1, 200, -1.2345).unwrap()),
+        Message::Command(Command {
+            axis: 6,
+            mode: mode::SERVO | mode::DEADMAN | mode::BRAKE,
+            cycle: 3,
+            speed: 32_767,
+            torque: -32_768,
+        }),
+        Message::Feedback(Feedback {
+            axis: 2,
+            angle: -2_000_000_000,
+            current: -32_768,
+            status: status::SERVO_ON | status::LIMIT,
+            cycle: 255,
+        }),
+        Message::Feedback(Feedback {
+            axis: 4,
+            angle: 1_234_567,
+            current: 1500,
+            status: status::BRAKE_ON | status::FAULT | status::WATCHDOG | status::DEADMAN,
+            cycle: 0,
+        }),
+    ];
+    let dir = std::env::temp_dir().join(format!("pa10-dbc-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut log = String::new();
+    let mut expected = Vec::new();
+    for (k, m) in messages.iter().enumerate() {
+        let f = protocol::encode(m).unwrap();
+        // the capture decodes back to the same message in our codec too
+        assert_eq!(protocol::decode(&f).unwrap(), *m);
+        log.push_str(&candump_line(k as f64 * 0.002, "vcan0", &f));
+        log.push('\n');
+        expected.push(json!({"id": f.id(), "signals": signals(m)}));
+    }
+    std::fs::write(dir.join("capture.log"), log).unwrap();
+    std::fs::write(
+        dir.join("expected.json"),
+        serde_json::to_string(&expected).unwrap(),
+    )
+    .unwrap();
+    let root = env!("CARGO_MANIFEST_DIR");
+    let out = std::process::Command::new("python3")
+        .arg(format!("{root}/tests/dbc/check_dbc.py"))
+        .arg(format!("{root}/docs/pa10.dbc"))
+        .arg(dir.join("capture.log"))
+        .arg(dir.join("expected.json"))
+        .output();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let required = std::env::var("PA10_REQUIRE_CANTOOLS").is_ok_and(|v| v == "1");
+    let out = match out {
+        Ok(o) => o,
+        Err(e) if !required => {
+            return eprintln!("SKIPPED: python3 not runnable ({e}); CI runs this check");
+        }
+        Err(e) => panic!("python3: {e}"),
+    };
+    if out.status.code() == Some(3) && !required {
+        return eprintln!(
+            "SKIPPED: cantools not installed (pip install cantools); CI runs this check"
+        );
+    }
+    assert!(
+        out.status.success(),
+        "cantools disagrees with the codec:\n{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
