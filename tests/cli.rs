@@ -381,6 +381,10 @@ fn sim_on_a_missing_can_interface_fails_clearly() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("needs --can IFACE"));
     let o = pa10(&["sim", "--can", "x", "--duration", "-1"]);
     assert!(String::from_utf8_lossy(&o.stderr).contains("--duration must be > 0 s"));
+    let o = pa10(&["sim", "--can", "x", "--current-offset", "7=0.5"]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--current-offset takes AXIS=VALUE"));
+    let o = pa10(&["sim", "--can", "x", "--mute-axis", "9"]);
+    assert_eq!(o.status.code(), Some(2));
     let dir = std::env::temp_dir().join(format!("pa10-replay-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("bad.log"), "(0.0) vcan0 080#0100\nnot a frame\n").unwrap();

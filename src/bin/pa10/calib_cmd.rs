@@ -48,6 +48,15 @@ pub struct RunArgs {
     /// Log all traffic in candump format to this file.
     #[arg(long, value_name = "FILE")]
     log: Option<PathBuf>,
+    /// Fault injection: this axis (1…6) never answers.
+    #[arg(long, value_name = "AXIS", value_parser = clap::value_parser!(u8).range(1..=6))]
+    mute_axis: Option<u8>,
+    /// Fault injection: current-sensor offset, `AXIS=AMPS` (repeatable).
+    #[arg(long, value_name = "AXIS=AMPS", allow_negative_numbers = true)]
+    current_offset: Vec<String>,
+    /// Fault injection: one resolver glitch of `AXIS=COUNTS` on the first feedback.
+    #[arg(long, value_name = "AXIS=COUNTS", allow_negative_numbers = true)]
+    resolver_glitch: Option<String>,
     /// Stop after this many seconds (default: run until Ctrl-C).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     duration: Option<f64>,
@@ -130,12 +139,17 @@ fn run_sim(a: &RunArgs) -> Result<()> {
         }
     };
     let home = [0.0, 0.5, 1.2, 0.0, 0.9, 0.0];
-    let sim = std::sync::Arc::new(std::sync::Mutex::new(ServoSim::new(
-        truth,
-        ServoConfig::default(),
-        home,
-        a.seed,
-    )));
+    let mut servo_sim = ServoSim::new(truth, ServoConfig::default(), home, a.seed);
+    servo_sim.injected.mute_axis = a.mute_axis;
+    for spec in &a.current_offset {
+        let (axis, amps) = axis_value(spec, "--current-offset")?;
+        servo_sim.injected.current_offset_a[axis - 1] = amps;
+    }
+    if let Some(spec) = &a.resolver_glitch {
+        let (axis, counts) = axis_value(spec, "--resolver-glitch")?;
+        servo_sim.injected.resolver_glitch = Some((axis as u8, counts as i32));
+    }
+    let sim = std::sync::Arc::new(std::sync::Mutex::new(servo_sim));
     let mut logger = match &a.log {
         Some(p) => Some(pa10::can::candump::Logger::new(
             std::io::BufWriter::new(
@@ -176,6 +190,22 @@ fn run_sim(a: &RunArgs) -> Result<()> {
         }
         anyhow::Ok(())
     })
+}
+
+/// Parses `AXIS=VALUE` with AXIS in 1…6.
+fn axis_value(spec: &str, flag: &str) -> Result<(usize, f64)> {
+    let parsed = spec.split_once('=').and_then(|(a, v)| {
+        Some((
+            a.trim().parse::<usize>().ok()?,
+            v.trim().parse::<f64>().ok()?,
+        ))
+    });
+    match parsed {
+        Some((a, v)) if (1..=6).contains(&a) && v.is_finite() => Ok((a, v)),
+        _ => {
+            anyhow::bail!("{flag} takes AXIS=VALUE with AXIS 1…6 and a finite value, got `{spec}`")
+        }
+    }
 }
 
 fn replay(a: &ReplayArgs) -> Result<()> {
