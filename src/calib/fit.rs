@@ -351,7 +351,34 @@ impl Whitening {
     }
 }
 
-impl Outer<'_> {
+impl<'a> Outer<'a> {
+    /// The problem at scaled parameters `s` (the inner level solved from `psi`).
+    #[allow(clippy::too_many_arguments)]
+    fn at(
+        base_model: &'a Model,
+        rows: &'a [Prepared],
+        map: &'a ParamMap,
+        opts: &'a CalibOptions,
+        whiten: Option<&'a Whitening>,
+        priors: &'a [DVector<f64>],
+        s: &DVector<f64>,
+        psi: Psi,
+    ) -> Self {
+        let mut pb = Outer {
+            base_model,
+            rows,
+            map,
+            opts,
+            priors,
+            whiten,
+            s: s.clone(),
+            model: None,
+            psi,
+        };
+        levenberg_marquardt::LeastSquaresProblem::set_params(&mut pb, s);
+        pb
+    }
+
     fn n_res(&self) -> usize {
         6 * self.rows.len()
             + if self.opts.epsilon > 0.0 {
@@ -663,18 +690,7 @@ pub fn calibrate(
     };
 
     // Weak directions from the SVD at the start.
-    let mut probe = Outer {
-        base_model: &m0,
-        rows: &rows,
-        map: &map,
-        opts,
-        priors: &[],
-        whiten: whitening.as_ref(),
-        s: s0.clone(),
-        model: None,
-        psi: psi0,
-    };
-    levenberg_marquardt::LeastSquaresProblem::set_params(&mut probe, &s0);
+    let probe = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &[], &s0, psi0);
     let j0 = probe
         .evaluate(true)
         .and_then(|(_, j)| j)
@@ -717,18 +733,7 @@ pub fn calibrate(
     let runs: Vec<Result<StartOutcome, String>> = starts
         .par_iter()
         .map(|s| {
-            let mut pb = Outer {
-                base_model: &m0,
-                rows: &rows,
-                map: &map,
-                opts,
-                priors: &priors,
-                whiten: whitening.as_ref(),
-                s: s.clone(),
-                model: None,
-                psi: psi0,
-            };
-            levenberg_marquardt::LeastSquaresProblem::set_params(&mut pb, s);
+            let pb = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, s, psi0);
             let (pb, report) = levenberg_marquardt::LevenbergMarquardt::new()
                 .with_patience(200)
                 .minimize(pb);
@@ -762,18 +767,7 @@ pub fn calibrate(
         .ok_or_else(|| CalibError::Failed(format!("no start converged: {}", reasons.join("; "))))?;
 
     // Final model, Jacobian, covariance.
-    let mut fin = Outer {
-        base_model: &m0,
-        rows: &rows,
-        map: &map,
-        opts,
-        priors: &priors,
-        whiten: whitening.as_ref(),
-        s: s.clone(),
-        model: None,
-        psi,
-    };
-    levenberg_marquardt::LeastSquaresProblem::set_params(&mut fin, &s);
+    let fin = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, &s, psi);
     let (r, j) = fin
         .evaluate(true)
         .ok_or_else(|| CalibError::Failed("final evaluation".into()))?;
