@@ -143,16 +143,52 @@ fn model_check_summarises_a_valid_file() {
 }
 
 #[test]
-fn the_daemon_skeleton_refuses_to_start() {
-    let o = Command::new(env!("CARGO_BIN_EXE_pa10d"))
-        .args([
-            "--config",
-            concat!(env!("CARGO_MANIFEST_DIR"), "/config/model-nominal.yaml"),
-        ])
-        .output()
-        .unwrap();
+fn the_daemon_checks_its_config_and_refuses_to_start() {
+    let pa10d = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_pa10d"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let sim = concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.yaml");
+    let o = pa10d(&["--check-config", sim]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        s.contains("valid") && s.contains("84.8 %") && s.contains("rigid joints"),
+        "{s}"
+    );
+    let o = pa10d(&["--config", sim]);
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("not implemented yet"));
+    // a bad config names the key
+    let dir = std::env::temp_dir().join(format!("pa10d-cfg-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(sim).unwrap().replace(
+        "model: model-nominal.yaml",
+        &format!(
+            "model: {}",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/config/model-nominal.yaml")
+        ),
+    );
+    std::fs::write(
+        dir.join("bad.yaml"),
+        text.replace("rate_hz: 500", "rate_hz: 1000"),
+    )
+    .unwrap();
+    let o = pa10d(&["--check-config", dir.join("bad.yaml").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("invalid `control.rate_hz`"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(
+        pa10d(&[]).status.code(),
+        Some(2),
+        "one of --config / --check-config is required"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]

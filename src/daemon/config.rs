@@ -1,0 +1,505 @@
+//! The daemon's configuration (`config/pa10d.yaml`, `config/sim.yaml`): plain data read with
+//! serde_yaml (`deny_unknown_fields`) and validated so that every error names its key and
+//! the reason. Validating touches no bus: `pa10d --check-config FILE` is this module.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::can::protocol::check_rate;
+use crate::model::Model;
+
+/// Which bus backend the daemon drives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Backend {
+    /// Linux SocketCAN (a real adapter, or vcan).
+    Socketcan,
+    /// The in-process virtual bus with the simulated servo controller.
+    Virtual,
+}
+
+/// The CAN bus.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BusConfig {
+    /// Backend.
+    pub backend: Backend,
+    /// SocketCAN interface (e.g. `can0`); required with `socketcan`.
+    #[serde(default)]
+    pub interface: Option<String>,
+    /// Bit rate, bit/s (the interface's, configured by the system).
+    #[serde(default = "default_bitrate")]
+    pub bitrate: f64,
+    /// Largest accepted worst-case bus load of the cyclic traffic, 0…1.
+    #[serde(default = "default_max_load")]
+    pub max_load: f64,
+}
+
+fn default_bitrate() -> f64 {
+    1e6
+}
+fn default_max_load() -> f64 {
+    0.9
+}
+
+/// Where the joint torques for the compensation come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TorqueSource {
+    /// Measured motor currents through the torque constants, low-pass filtered: sees every
+    /// load, including unknown ones, but carries current noise and friction.
+    Measured,
+    /// The model's gravity plus the configured payload: noise-free and exact when the
+    /// payload is known; blind to unexpected loads.
+    Model,
+}
+
+/// Real-time options of the control thread.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct Realtime {
+    /// SCHED_FIFO priority of the control thread (1…99); absent: normal scheduling.
+    #[serde(default)]
+    pub sched_fifo_priority: Option<u8>,
+    /// Lock the daemon's memory (mlockall) when permitted.
+    #[serde(default)]
+    pub mlockall: bool,
+}
+
+/// The control loop.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControlConfig {
+    /// Cycle rate, Hz (checked against the bus budget).
+    #[serde(default = "default_rate")]
+    pub rate_hz: f64,
+    /// Position-loop gain, 1/s (speed command = feed-forward + gain × motor-angle error).
+    #[serde(default = "default_gain")]
+    pub position_gain: f64,
+    /// Torque source of the compensation.
+    #[serde(default = "default_torque_source")]
+    pub torque_source: TorqueSource,
+    /// Low-pass cut-off of the measured torques, Hz.
+    #[serde(default = "default_filter")]
+    pub current_filter_hz: f64,
+    /// Real-time options.
+    #[serde(default)]
+    pub realtime: Realtime,
+}
+
+fn default_rate() -> f64 {
+    500.0
+}
+fn default_gain() -> f64 {
+    20.0
+}
+fn default_torque_source() -> TorqueSource {
+    TorqueSource::Model
+}
+fn default_filter() -> f64 {
+    20.0
+}
+
+/// Motion and safety limits (link side).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// Speed limits for moves, rad/s (each ≤ the model's).
+    pub speed: [f64; 6],
+    /// Acceleration limits, rad/s².
+    pub acceleration: [f64; 6],
+    /// Largest tolerated |setpoint − measured| per joint, rad.
+    pub following_error: f64,
+    /// Feedback older than this stops the arm, ms.
+    pub feedback_timeout_ms: f64,
+}
+
+/// The client API socket.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ApiConfig {
+    /// Unix socket path.
+    #[serde(default = "default_socket")]
+    pub socket: PathBuf,
+    /// Socket file mode, octal text (e.g. "0660").
+    #[serde(default = "default_mode")]
+    pub mode: String,
+}
+
+fn default_socket() -> PathBuf {
+    PathBuf::from("/run/pa10d/pa10d.sock")
+}
+fn default_mode() -> String {
+    "0660".into()
+}
+
+/// The simulated robot behind the virtual backend.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct SimConfig {
+    /// A hidden true robot (model YAML); drawn from `seed` when absent.
+    #[serde(default)]
+    pub truth: Option<PathBuf>,
+    /// Seed of the drawn truth and of the sensor noise.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+/// Everything `pa10d` reads.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// CAN bus.
+    pub bus: BusConfig,
+    /// Control loop.
+    #[serde(default = "default_control")]
+    pub control: ControlConfig,
+    /// Model file (nominal or calibrated), relative to the config file's folder.
+    pub model: PathBuf,
+    /// Motor current → link torque constants, N·m/A.
+    pub torque_constants: [f64; 6],
+    /// Weight hung at the tool, N.
+    #[serde(default)]
+    pub payload_n: f64,
+    /// Motion and safety limits.
+    pub limits: Limits,
+    /// Client API.
+    #[serde(default = "default_api")]
+    pub api: ApiConfig,
+    /// Log filter (tracing syntax, e.g. `info`, `pa10=debug`).
+    #[serde(default = "default_log")]
+    pub log_level: String,
+    /// The simulated robot (virtual backend only).
+    #[serde(default)]
+    pub sim: Option<SimConfig>,
+}
+
+fn default_control() -> ControlConfig {
+    ControlConfig {
+        rate_hz: default_rate(),
+        position_gain: default_gain(),
+        torque_source: default_torque_source(),
+        current_filter_hz: default_filter(),
+        realtime: Realtime::default(),
+    }
+}
+fn default_api() -> ApiConfig {
+    ApiConfig {
+        socket: default_socket(),
+        mode: default_mode(),
+    }
+}
+fn default_log() -> String {
+    "info".into()
+}
+
+/// Why a configuration was refused.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// The file could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Malformed YAML, unknown or mistyped key (the message has line and column).
+    #[error("{origin}: {message}")]
+    Parse {
+        /// Where the text came from.
+        origin: String,
+        /// The parser's message.
+        message: String,
+    },
+    /// A value is out of range.
+    #[error("invalid `{key}`: {reason}")]
+    Invalid {
+        /// The key, e.g. `limits.speed[2]`.
+        key: String,
+        /// Why, with units.
+        reason: String,
+    },
+}
+
+fn invalid(key: impl Into<String>, reason: impl Into<String>) -> ConfigError {
+    ConfigError::Invalid {
+        key: key.into(),
+        reason: reason.into(),
+    }
+}
+
+/// A validated configuration with its model loaded.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    /// The configuration.
+    pub config: Config,
+    /// The model file, resolved against the configuration's folder.
+    pub model_path: PathBuf,
+    /// The model.
+    pub model: Model,
+    /// The cyclic traffic's worst-case bus load, 0…1.
+    pub bus_load: f64,
+    /// The socket mode, parsed.
+    pub socket_mode: u32,
+}
+
+impl Config {
+    /// Parses YAML text; `origin` names it in errors.
+    pub fn parse(text: &str, origin: &str) -> Result<Self, ConfigError> {
+        serde_yaml::from_str(text).map_err(|e| ConfigError::Parse {
+            origin: origin.into(),
+            message: e.to_string(),
+        })
+    }
+
+    /// Reads, validates and loads the model of a configuration file.
+    pub fn load(path: &Path) -> Result<Loaded, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let config = Self::parse(&text, &path.display().to_string())?;
+        config.validate(path.parent().unwrap_or(Path::new(".")))
+    }
+
+    /// Validates every value and loads the model (`base`: folder relative paths start from).
+    pub fn validate(self, base: &Path) -> Result<Loaded, ConfigError> {
+        let c = &self;
+        if c.bus.backend == Backend::Socketcan
+            && c.bus.interface.as_deref().is_none_or(str::is_empty)
+        {
+            return Err(invalid(
+                "bus.interface",
+                "the socketcan backend needs an interface name, e.g. can0",
+            ));
+        }
+        if !(c.bus.max_load > 0.0 && c.bus.max_load <= 1.0) {
+            return Err(invalid(
+                "bus.max_load",
+                format!("must be within (0, 1], got {}", c.bus.max_load),
+            ));
+        }
+        let bus_load = check_rate(c.control.rate_hz, c.bus.bitrate, c.bus.max_load)
+            .map_err(|r| invalid("control.rate_hz", r))?;
+        if !(c.control.position_gain.is_finite()
+            && c.control.position_gain > 0.0
+            && c.control.position_gain < c.control.rate_hz / 2.0)
+        {
+            return Err(invalid(
+                "control.position_gain",
+                format!(
+                    "must be > 0 and below half the cycle rate ({} 1/s), got {}",
+                    c.control.rate_hz / 2.0,
+                    c.control.position_gain
+                ),
+            ));
+        }
+        if !(c.control.current_filter_hz.is_finite()
+            && c.control.current_filter_hz > 0.0
+            && c.control.current_filter_hz < c.control.rate_hz / 2.0)
+        {
+            return Err(invalid(
+                "control.current_filter_hz",
+                format!(
+                    "must be > 0 Hz and below the Nyquist rate {} Hz",
+                    c.control.rate_hz / 2.0
+                ),
+            ));
+        }
+        if let Some(p) = c.control.realtime.sched_fifo_priority
+            && !(1..=99).contains(&p)
+        {
+            return Err(invalid(
+                "control.realtime.sched_fifo_priority",
+                format!("must be 1…99, got {p}"),
+            ));
+        }
+        for (j, k) in c.torque_constants.iter().enumerate() {
+            if !(k.is_finite() && *k > 0.0) {
+                return Err(invalid(
+                    format!("torque_constants[{j}]"),
+                    format!("must be > 0 N·m/A, got {k}"),
+                ));
+            }
+        }
+        if !(c.payload_n.is_finite() && c.payload_n >= 0.0 && c.payload_n <= 500.0) {
+            return Err(invalid(
+                "payload_n",
+                format!("must be within 0…500 N, got {}", c.payload_n),
+            ));
+        }
+        let model_path = base.join(&c.model);
+        let model = Model::load(&model_path).map_err(|e| invalid("model", e.to_string()))?;
+        let l = &c.limits;
+        for j in 0..6 {
+            let vmax = model.limits().velocity[j];
+            if !(l.speed[j].is_finite() && l.speed[j] > 0.0 && l.speed[j] <= vmax) {
+                return Err(invalid(
+                    format!("limits.speed[{j}]"),
+                    format!(
+                        "must be within (0, {vmax}] rad/s (the model's limit), got {}",
+                        l.speed[j]
+                    ),
+                ));
+            }
+            if !(l.acceleration[j].is_finite()
+                && l.acceleration[j] > 0.0
+                && l.acceleration[j] <= 50.0)
+            {
+                return Err(invalid(
+                    format!("limits.acceleration[{j}]"),
+                    format!("must be within (0, 50] rad/s², got {}", l.acceleration[j]),
+                ));
+            }
+        }
+        if !(l.following_error.is_finite() && l.following_error > 0.0 && l.following_error <= 0.5) {
+            return Err(invalid(
+                "limits.following_error",
+                format!("must be within (0, 0.5] rad, got {}", l.following_error),
+            ));
+        }
+        let period_ms = 1e3 / c.control.rate_hz;
+        if !(l.feedback_timeout_ms.is_finite()
+            && l.feedback_timeout_ms >= 2.0 * period_ms
+            && l.feedback_timeout_ms <= 1000.0)
+        {
+            return Err(invalid(
+                "limits.feedback_timeout_ms",
+                format!(
+                    "must be within [{:.1}, 1000] ms (at least two cycles), got {}",
+                    2.0 * period_ms,
+                    l.feedback_timeout_ms
+                ),
+            ));
+        }
+        let socket_mode = u32::from_str_radix(c.api.mode.trim_start_matches("0o"), 8)
+            .ok()
+            .filter(|m| *m <= 0o777)
+            .ok_or_else(|| {
+                invalid(
+                    "api.mode",
+                    format!(
+                        "must be an octal file mode like \"0660\", got {:?}",
+                        c.api.mode
+                    ),
+                )
+            })?;
+        if c.api.socket.as_os_str().is_empty() {
+            return Err(invalid("api.socket", "needs a path"));
+        }
+        if c.log_level.trim().is_empty() {
+            return Err(invalid("log_level", "needs a filter such as `info`"));
+        }
+        match (c.bus.backend, &c.sim) {
+            (Backend::Socketcan, Some(_)) => {
+                return Err(invalid(
+                    "sim",
+                    "only the virtual backend has a simulated robot",
+                ));
+            }
+            (Backend::Virtual, Some(SimConfig { truth: Some(t), .. }))
+                if !base.join(t).exists() =>
+            {
+                return Err(invalid(
+                    "sim.truth",
+                    format!("{} does not exist", base.join(t).display()),
+                ));
+            }
+            _ => {}
+        }
+        Ok(Loaded {
+            config: self,
+            model_path,
+            model,
+            bus_load,
+            socket_mode,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn root() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config")
+    }
+
+    fn sim_yaml() -> String {
+        std::fs::read_to_string(root().join("sim.yaml")).unwrap()
+    }
+
+    fn err(text: &str) -> String {
+        match Config::parse(text, "t.yaml").and_then(|c| c.validate(&root())) {
+            Ok(_) => panic!("accepted:\n{text}"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn shipped_configs_are_valid() {
+        let s = Config::load(&root().join("sim.yaml")).unwrap();
+        assert_eq!(s.config.bus.backend, Backend::Virtual);
+        assert!((s.bus_load - 0.8475).abs() < 1e-9);
+        assert_eq!(s.socket_mode, 0o660);
+        // the hardware config names /etc/pa10d/calibrated.yaml; validate it against the nominal
+        let mut h = Config::parse(
+            &std::fs::read_to_string(root().join("pa10d.yaml")).unwrap(),
+            "pa10d.yaml",
+        )
+        .unwrap();
+        assert_eq!(h.model, PathBuf::from("/etc/pa10d/calibrated.yaml"));
+        h.model = root().join("model-nominal.yaml");
+        let h = h.validate(&root()).unwrap();
+        assert_eq!(h.config.bus.interface.as_deref(), Some("can0"));
+        assert_eq!(h.config.control.realtime.sched_fifo_priority, Some(80));
+    }
+
+    #[test]
+    fn every_error_names_its_key() {
+        let y = sim_yaml();
+        assert!(
+            err(&y.replace("rate_hz: 500", "rate_hz: 700"))
+                .contains("invalid `control.rate_hz`: 700 Hz needs 118.")
+        );
+        assert!(err(&y.replace("payload_n: 0.0", "payload_n: -3")).contains("`payload_n`"));
+        assert!(
+            err(&y.replace("following_error: 0.01", "following_error: 2"))
+                .contains("`limits.following_error`")
+        );
+        assert!(err(&y.replace("mode: \"0660\"", "mode: \"rw\"")).contains("`api.mode`"));
+        assert!(
+            err(&y.replace("backend: virtual", "backend: socketcan")).contains("`bus.interface`")
+        );
+        assert!(
+            err(&y.replace("log_level: info", "log_levle: info"))
+                .contains("unknown field `log_levle`")
+        );
+        assert!(
+            err(&y.replace("model: model-nominal.yaml", "model: nope.yaml"))
+                .contains("invalid `model`")
+        );
+        assert!(
+            err(&y.replace(
+                "[15.0, 30.0, 15.0, 5.0, 5.0, 2.0]",
+                "[15.0, 30.0, 0.0, 5.0, 5.0, 2.0]"
+            ))
+            .contains("`torque_constants[2]`")
+        );
+        assert!(
+            err(&y.replace(
+                "speed: [0.5, 0.5, 1.0, 2.0, 2.0, 2.0]",
+                "speed: [0.5, 3.0, 1.0, 2.0, 2.0, 2.0]"
+            ))
+            .contains("`limits.speed[1]`")
+        );
+        assert!(
+            err(&y.replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 1"))
+                .contains("at least two cycles")
+        );
+    }
+}

@@ -1,0 +1,4 @@
+//! The `pa10d` control daemon's library side: configuration (and, as the `[daemon]` issue
+//! proceeds, the control loop, motion, the client API and the safety supervisor).
+
+pub mod config;
