@@ -2,3 +2,4 @@
 //! proceeds, the control loop, motion, the client API and the safety supervisor).
 
 pub mod config;
+pub mod motion;
