@@ -5,6 +5,7 @@ mod accuracy;
 mod calibration;
 mod cli;
 mod common;
+mod control;
 mod dbc;
 mod model;
 mod model_file;

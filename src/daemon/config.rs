@@ -48,10 +48,12 @@ fn default_max_load() -> f64 {
 #[serde(rename_all = "lowercase")]
 pub enum TorqueSource {
     /// Measured motor currents through the torque constants, low-pass filtered: sees every
-    /// load, including unknown ones, but carries current noise and friction.
+    /// load — link masses, tooling, payload, known or not — but carries current noise and
+    /// friction. The default: calibration identifies the springs from measured torques and
+    /// never the masses, so the model's gravity is only as good as its mass seed.
     Measured,
-    /// The model's gravity plus the configured payload: noise-free and exact when the
-    /// payload is known; blind to unexpected loads.
+    /// The model's gravity plus the configured payload: noise-free, exact only when the
+    /// model's bodies (tooling included) and the payload are right.
     Model,
 }
 
@@ -95,7 +97,7 @@ fn default_gain() -> f64 {
     20.0
 }
 fn default_torque_source() -> TorqueSource {
-    TorqueSource::Model
+    TorqueSource::Measured
 }
 fn default_filter() -> f64 {
     20.0

@@ -2,4 +2,5 @@
 //! proceeds, the control loop, motion, the client API and the safety supervisor).
 
 pub mod config;
+pub mod control;
 pub mod motion;

@@ -1,0 +1,304 @@
+//! One control cycle, sans IO: joint state in, speed commands out.
+//!
+//! `feedback → torque estimate → compensation → position loop → speed commands`, with the
+//! safety checks of every cycle. [`Controller::step`] takes the time and the cycle's
+//! feedback as arguments and never reads a clock or a socket, so the whole loop is tested
+//! without either; the daemon's control thread only moves frames. No allocation per cycle.
+//!
+//! - **Torques**: [`TorqueSource::Measured`] (the default) uses the motor currents × torque
+//!   constants through a first-order low-pass: it sees every load, tooling and unknown
+//!   payloads included, which matters because calibration identifies the springs from
+//!   measured torques but never the masses; [`TorqueSource::Model`] uses the model's gravity
+//!   plus the configured payload at the link setpoint (noise-free, exact only when the
+//!   model's bodies and the payload are right).
+//! - **Compensation**: the motor target that puts the *link* at the setpoint,
+//!   `q_motor = q_link + δ(τ)` ([`Model::compensate`]).
+//! - **Position loop**: `speed = q̇_setpoint + K·(q_motor_target − q_motor_measured)`,
+//!   clamped to the speed limits.
+//! - **Safety**: stale feedback, following error beyond the limit, a joint outside its
+//!   limits, or a controller fault → [`Fault`]; the loop then commands zero speed until
+//!   `reset`.
+
+use super::config::TorqueSource;
+use super::motion::{Move, MoveError, Setpoint};
+use crate::model::{ExternalLoad, Model};
+
+/// The joint state of one cycle, as decoded from the six FEEDBACK frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointState {
+    /// Resolver (motor-side) angles, rad.
+    pub q_motor: [f64; 6],
+    /// Motor currents, A.
+    pub current: [f64; 6],
+    /// When it was sampled (the SYNC time), s.
+    pub stamp_s: f64,
+    /// The controller reported a fault on some axis.
+    pub controller_fault: bool,
+}
+
+/// Why the loop stopped the arm.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Fault {
+    /// No complete feedback for longer than the timeout.
+    #[error("stale feedback: none for {age_ms:.1} ms (limit {limit_ms:.1} ms)")]
+    StaleFeedback {
+        /// Age of the last feedback, ms.
+        age_ms: f64,
+        /// Timeout, ms.
+        limit_ms: f64,
+    },
+    /// The motor lags its target by more than the limit.
+    #[error("following error on joint {joint}: {error:.4} rad (limit {limit:.4} rad)")]
+    FollowingError {
+        /// 1…6.
+        joint: usize,
+        /// |target − measured|, rad.
+        error: f64,
+        /// Limit, rad.
+        limit: f64,
+    },
+    /// A joint left its limits.
+    #[error("joint {joint} at {value:.4} rad is outside its limits")]
+    JointLimit {
+        /// 1…6.
+        joint: usize,
+        /// Link angle estimate, rad.
+        value: f64,
+    },
+    /// The servo controller reported a fault.
+    #[error("the servo controller reports a fault")]
+    Controller,
+    /// A setpoint could not be computed (the model refused the path mid-move).
+    #[error("setpoint: {0}")]
+    Setpoint(MoveError),
+}
+
+/// What the loop is doing.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Activity {
+    /// Holding the last setpoint.
+    Holding,
+    /// Following a move that started at `start_s`.
+    Moving {
+        /// The move (boxed: planned once per move, not per cycle).
+        mv: Box<Move>,
+        /// Start time, s.
+        start_s: f64,
+    },
+    /// Stopped by a fault; zero speed until reset.
+    Faulted(Fault),
+}
+
+/// Loop parameters (from the daemon configuration).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopParams {
+    /// Cycle period, s.
+    pub period_s: f64,
+    /// Position gain, 1/s.
+    pub gain: f64,
+    /// Torque source.
+    pub torque_source: TorqueSource,
+    /// Low-pass cut-off for measured torques, Hz.
+    pub filter_hz: f64,
+    /// Torque constants, N·m/A.
+    pub torque_constants: [f64; 6],
+    /// Payload hung at the tool, N.
+    pub payload_n: f64,
+    /// Speed limits, rad/s.
+    pub speed: [f64; 6],
+    /// Following-error limit, rad.
+    pub following_error: f64,
+    /// Feedback timeout, s.
+    pub feedback_timeout_s: f64,
+}
+
+/// The sans-IO controller.
+#[derive(Debug, Clone)]
+pub struct Controller {
+    model: Model,
+    p: LoopParams,
+    setpoint: Setpoint,
+    activity: Activity,
+    tau_filtered: [f64; 6],
+    last_feedback_s: f64,
+    last_state: Option<JointState>,
+}
+
+impl Controller {
+    /// A controller holding the arm where `first` says it is.
+    pub fn new(model: Model, p: LoopParams, first: &JointState) -> Self {
+        let load = ExternalLoad::hung(p.payload_n, &model.gravity());
+        let q_link = model
+            .link_from_motor_static(&first.q_motor, &load)
+            .map(|(q, _)| q)
+            .unwrap_or(first.q_motor);
+        Self {
+            model,
+            p,
+            setpoint: Setpoint {
+                q: q_link,
+                qd: [0.0; 6],
+            },
+            activity: Activity::Holding,
+            tau_filtered: [0.0; 6],
+            last_feedback_s: first.stamp_s,
+            last_state: Some(*first),
+        }
+    }
+
+    /// What the loop is doing.
+    pub fn activity(&self) -> &Activity {
+        &self.activity
+    }
+    /// The current link-side setpoint.
+    pub fn setpoint(&self) -> &Setpoint {
+        &self.setpoint
+    }
+    /// The model in use.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Starts `mv` at `now_s`; refused while faulted or already moving.
+    pub fn start_move(&mut self, mv: Move, now_s: f64) -> Result<(), String> {
+        match &self.activity {
+            Activity::Faulted(f) => Err(format!("faulted ({f}); send reset first")),
+            Activity::Moving { .. } => Err("a move is in progress; stop it first".into()),
+            Activity::Holding => {
+                self.activity = Activity::Moving {
+                    mv: Box::new(mv),
+                    start_s: now_s,
+                };
+                Ok(())
+            }
+        }
+    }
+
+    /// Replaces the model between moves (hot reload); refused while moving.
+    pub fn load_model(&mut self, model: Model) -> Result<(), String> {
+        if matches!(self.activity, Activity::Moving { .. }) {
+            return Err("cannot change the model during a move".into());
+        }
+        self.model = model;
+        Ok(())
+    }
+
+    /// Sets the payload hung at the tool, N.
+    pub fn set_payload(&mut self, newtons: f64) -> Result<(), String> {
+        if !(newtons.is_finite() && (0.0..=500.0).contains(&newtons)) {
+            return Err(format!("payload must be within 0…500 N, got {newtons}"));
+        }
+        self.p.payload_n = newtons;
+        Ok(())
+    }
+
+    /// Clears a fault: hold where the arm is now.
+    pub fn reset(&mut self) {
+        if let (Activity::Faulted(_), Some(s)) = (&self.activity, self.last_state) {
+            let load = ExternalLoad::hung(self.p.payload_n, &self.model.gravity());
+            self.setpoint = Setpoint {
+                q: self
+                    .model
+                    .link_from_motor_static(&s.q_motor, &load)
+                    .map(|(q, _)| q)
+                    .unwrap_or(s.q_motor),
+                qd: [0.0; 6],
+            };
+            self.activity = Activity::Holding;
+        }
+    }
+
+    /// Ends a move early: hold the current setpoint (the daemon ramps it down by planning a
+    /// stopping move when a controlled deceleration is wanted).
+    pub fn hold(&mut self) {
+        if matches!(self.activity, Activity::Moving { .. }) {
+            self.setpoint.qd = [0.0; 6];
+            self.activity = Activity::Holding;
+        }
+    }
+
+    /// One cycle at `now_s`: `fb` is this cycle's complete feedback, `None` when it did not
+    /// arrive. Returns the six speed commands (rad/s); zero when faulted.
+    pub fn step(&mut self, now_s: f64, fb: Option<&JointState>) -> [f64; 6] {
+        if let Some(f) = fb {
+            self.last_feedback_s = f.stamp_s;
+            self.last_state = Some(*f);
+        }
+        if matches!(self.activity, Activity::Faulted(_)) {
+            return [0.0; 6];
+        }
+        let age = now_s - self.last_feedback_s;
+        if age > self.p.feedback_timeout_s {
+            return self.fault(Fault::StaleFeedback {
+                age_ms: age * 1e3,
+                limit_ms: self.p.feedback_timeout_s * 1e3,
+            });
+        }
+        let Some(state) = self.last_state else {
+            return [0.0; 6];
+        };
+        if state.controller_fault {
+            return self.fault(Fault::Controller);
+        }
+        // setpoint
+        if let Activity::Moving { mv, start_s } = &self.activity {
+            let t = now_s - start_s;
+            match mv.sample(&self.model, t, &self.setpoint.q) {
+                Ok(sp) => self.setpoint = sp,
+                Err(e) => return self.fault(Fault::Setpoint(e)),
+            }
+            if t >= mv.duration() {
+                self.setpoint.qd = [0.0; 6];
+                self.activity = Activity::Holding;
+            }
+        }
+        // torques
+        let load = ExternalLoad::hung(self.p.payload_n, &self.model.gravity());
+        let tau = match self.p.torque_source {
+            TorqueSource::Model => self.model.static_torques(&self.setpoint.q, &load),
+            TorqueSource::Measured => {
+                let alpha =
+                    1.0 - (-std::f64::consts::TAU * self.p.filter_hz * self.p.period_s).exp();
+                for j in 0..6 {
+                    let m = state.current[j] * self.p.torque_constants[j];
+                    self.tau_filtered[j] += alpha * (m - self.tau_filtered[j]);
+                }
+                self.tau_filtered
+            }
+        };
+        let target = match self.model.compensate(&self.setpoint.q, &tau) {
+            Ok(t) => t,
+            Err(_) => {
+                return self.fault(Fault::Setpoint(MoveError::NonFinite("compensated target")));
+            }
+        };
+        let lim = self.model.limits();
+        let mut out = [0.0; 6];
+        for j in 0..6 {
+            let e = target[j] - state.q_motor[j];
+            if e.abs() > self.p.following_error {
+                return self.fault(Fault::FollowingError {
+                    joint: j + 1,
+                    error: e.abs(),
+                    limit: self.p.following_error,
+                });
+            }
+            let link = state.q_motor[j] - (target[j] - self.setpoint.q[j]);
+            if link < lim.lower[j] - 1e-3 || link > lim.upper[j] + 1e-3 {
+                return self.fault(Fault::JointLimit {
+                    joint: j + 1,
+                    value: link,
+                });
+            }
+            out[j] =
+                (self.setpoint.qd[j] + self.p.gain * e).clamp(-self.p.speed[j], self.p.speed[j]);
+        }
+        out
+    }
+
+    fn fault(&mut self, f: Fault) -> [f64; 6] {
+        self.activity = Activity::Faulted(f);
+        [0.0; 6]
+    }
+}
