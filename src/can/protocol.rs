@@ -48,6 +48,18 @@ impl Frame {
             data: d,
         })
     }
+    /// A frame of `len` zero bytes, usable in constants; `None` when `id` exceeds 11 bits or
+    /// `len` 8.
+    pub const fn new_const(id: u16, len: u8) -> Option<Self> {
+        if id > 0x7FF || len > 8 {
+            return None;
+        }
+        Some(Self {
+            id,
+            len,
+            data: [0; 8],
+        })
+    }
     /// The 11-bit identifier.
     pub fn id(&self) -> u16 {
         self.id
