@@ -25,6 +25,7 @@ fn params() -> LoopParams {
         torque_constants: SIM_TORQUE_CONSTANTS,
         payload_n: 0.0,
         speed: VMAX,
+        acceleration: AMAX,
         following_error: 0.01,
         feedback_timeout_s: 0.02,
     }
@@ -288,4 +289,51 @@ fn a_resolver_jump_is_a_following_error_and_a_controller_fault_stops_too() {
     // bad requests leave it as it was
     assert!(ctl.set_payload(-1.0).is_err());
     assert!(ctl.set_payload(f64::NAN).is_err());
+}
+
+#[test]
+fn stop_decelerates_to_rest_within_the_limits() {
+    let truth = TrueRobot::draw(4, &Model::nominal(), &tool(), SimNoise::default()).unwrap();
+    let model = Model::nominal().with_tool(&tool()).unwrap();
+    let mut lp = Loop::new(truth, [0.0, 0.4, 1.6, 0.0, 1.1, 0.0]);
+    let first = lp.feedback().unwrap();
+    let mut ctl = Controller::new(model.clone(), params(), &first);
+    let mv = Move::joints(
+        &model,
+        ctl.setpoint().q,
+        [1.0, 0.9, 1.0, 0.5, 0.5, 0.5],
+        &VMAX,
+        &AMAX,
+    )
+    .unwrap();
+    ctl.start_move(mv, lp.t).unwrap();
+    lp.run(&mut ctl, 1.0);
+    let v0 = ctl.setpoint().qd;
+    assert!(v0.iter().any(|v| v.abs() > 0.1), "moving: {v0:?}");
+    ctl.stop();
+    assert!(matches!(ctl.activity(), Activity::Stopping { .. }));
+    let mut prev = ctl.setpoint().qd;
+    for _ in 0..2000 {
+        lp.run(&mut ctl, PERIOD);
+        let v = ctl.setpoint().qd;
+        for j in 0..6 {
+            assert!(
+                (v[j] - prev[j]).abs() <= AMAX[j] * PERIOD * (1.0 + 1e-9),
+                "joint {} decelerates too hard",
+                j + 1
+            );
+        }
+        prev = v;
+        if ctl.activity() == &Activity::Holding {
+            break;
+        }
+    }
+    assert_eq!(ctl.activity(), &Activity::Holding);
+    assert_eq!(ctl.setpoint().qd, [0.0; 6]);
+    lp.run(&mut ctl, 0.3);
+    assert_eq!(
+        ctl.activity(),
+        &Activity::Holding,
+        "no following error after the stop"
+    );
 }

@@ -86,6 +86,11 @@ pub enum Activity {
         /// Start time, s.
         start_s: f64,
     },
+    /// Decelerating to rest (a controlled stop), all joints together.
+    Stopping {
+        /// Per-joint deceleration, rad/s².
+        decel: [f64; 6],
+    },
     /// Stopped by a fault; zero speed until reset.
     Faulted(Fault),
 }
@@ -107,6 +112,8 @@ pub struct LoopParams {
     pub payload_n: f64,
     /// Speed limits, rad/s.
     pub speed: [f64; 6],
+    /// Acceleration limits (controlled stops), rad/s².
+    pub acceleration: [f64; 6],
     /// Following-error limit, rad.
     pub following_error: f64,
     /// Feedback timeout, s.
@@ -164,7 +171,9 @@ impl Controller {
     pub fn start_move(&mut self, mv: Move, now_s: f64) -> Result<(), String> {
         match &self.activity {
             Activity::Faulted(f) => Err(format!("faulted ({f}); send reset first")),
-            Activity::Moving { .. } => Err("a move is in progress; stop it first".into()),
+            Activity::Moving { .. } | Activity::Stopping { .. } => {
+                Err("a move is in progress; stop it first".into())
+            }
             Activity::Holding => {
                 self.activity = Activity::Moving {
                     mv: Box::new(mv),
@@ -177,7 +186,10 @@ impl Controller {
 
     /// Replaces the model between moves (hot reload); refused while moving.
     pub fn load_model(&mut self, model: Model) -> Result<(), String> {
-        if matches!(self.activity, Activity::Moving { .. }) {
+        if matches!(
+            self.activity,
+            Activity::Moving { .. } | Activity::Stopping { .. }
+        ) {
             return Err("cannot change the model during a move".into());
         }
         self.model = model;
@@ -209,12 +221,21 @@ impl Controller {
         }
     }
 
-    /// Ends a move early: hold the current setpoint (the daemon ramps it down by planning a
-    /// stopping move when a controlled deceleration is wanted).
-    pub fn hold(&mut self) {
+    /// A controlled stop: the setpoint decelerates to rest within the acceleration limits,
+    /// every joint reaching zero speed at the same instant. No effect unless moving.
+    pub fn stop(&mut self) {
         if matches!(self.activity, Activity::Moving { .. }) {
-            self.setpoint.qd = [0.0; 6];
-            self.activity = Activity::Holding;
+            let qd = self.setpoint.qd;
+            let t = (0..6)
+                .map(|j| qd[j].abs() / self.p.acceleration[j])
+                .fold(0.0, f64::max);
+            if t <= 0.0 {
+                self.activity = Activity::Holding;
+                return;
+            }
+            self.activity = Activity::Stopping {
+                decel: std::array::from_fn(|j| qd[j].abs() / t),
+            };
         }
     }
 
@@ -250,6 +271,24 @@ impl Controller {
             }
             if t >= mv.duration() {
                 self.setpoint.qd = [0.0; 6];
+                self.activity = Activity::Holding;
+            }
+        }
+        if let Activity::Stopping { decel } = self.activity {
+            let dt = self.p.period_s;
+            let mut moving = false;
+            for j in 0..6 {
+                let v = self.setpoint.qd[j];
+                let nv = if v > 0.0 {
+                    (v - decel[j] * dt).max(0.0)
+                } else {
+                    (v + decel[j] * dt).min(0.0)
+                };
+                self.setpoint.q[j] += 0.5 * (v + nv) * dt;
+                self.setpoint.qd[j] = nv;
+                moving |= nv != 0.0;
+            }
+            if !moving {
                 self.activity = Activity::Holding;
             }
         }
