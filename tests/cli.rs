@@ -143,7 +143,7 @@ fn model_check_summarises_a_valid_file() {
 }
 
 #[test]
-fn the_daemon_checks_its_config_and_refuses_to_start() {
+fn the_daemon_checks_its_config() {
     let pa10d = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_pa10d"))
             .args(args)
@@ -158,9 +158,6 @@ fn the_daemon_checks_its_config_and_refuses_to_start() {
         s.contains("valid") && s.contains("84.8 %") && s.contains("rigid joints"),
         "{s}"
     );
-    let o = pa10d(&["--config", sim]);
-    assert_eq!(o.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("not implemented yet"));
     // a bad config names the key
     let dir = std::env::temp_dir().join(format!("pa10d-cfg-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

@@ -6,6 +6,7 @@ mod calibration;
 mod cli;
 mod common;
 mod control;
+mod daemon;
 mod dbc;
 mod model;
 mod model_file;

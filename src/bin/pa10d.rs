@@ -1,15 +1,20 @@
 //! `pa10d`: the PA10 control daemon.
 //!
-//! Today it validates its configuration (`--check-config FILE`, which touches no bus) and,
-//! given `--config FILE`, validates it and then refuses to start with a clear message: the
-//! control loop arrives with the rest of the `[daemon]` issue, and a service unit pointing at
-//! this binary must fail loudly rather than pretend to control an arm.
+//! Wiring only: read and validate the configuration, start the control core
+//! ([`pa10::daemon::runtime::Daemon`]) on the configured bus, serve the client API on the
+//! Unix socket, tell systemd (READY after the controller is in control mode; watchdog pings
+//! only while the control loop makes progress), and on SIGTERM/SIGINT bring the arm to rest
+//! and stop the servo before exiting.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Duration;
 
+use anyhow::{Context, Result};
 use clap::Parser;
 use pa10::daemon::config::{Backend, Config};
+use pa10::daemon::runtime::{Daemon, lock};
+use sd_notify::NotifyState;
 
 /// pa10d: compensating control daemon for the Mitsubishi PA10-6CE.
 #[derive(Debug, Parser)]
@@ -30,63 +35,116 @@ struct Cli {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let path = cli
-        .check_config
-        .as_ref()
-        .or(cli.config.as_ref())
-        .cloned()
-        .unwrap_or_default();
-    let loaded = match Config::load(&path) {
-        Ok(l) => l,
-        Err(e) => {
-            eprintln!("pa10d: error: {e}");
-            return ExitCode::FAILURE;
-        }
+    let result = match (&cli.check_config, &cli.config) {
+        (Some(p), _) => check(p),
+        (None, Some(p)) => run(p),
+        (None, None) => Ok(()),
     };
-    let c = &loaded.config;
-    if cli.check_config.is_some() {
-        let bus = match c.bus.backend {
-            Backend::Socketcan => {
-                format!("socketcan on {}", c.bus.interface.as_deref().unwrap_or("?"))
-            }
-            Backend::Virtual => "virtual bus with the simulated controller".to_string(),
-        };
-        let stiff: Vec<String> = (0..6)
-            .filter(|&j| loaded.model.stiffness(j).is_some())
-            .map(|j| format!("J{}", j + 1))
-            .collect();
-        println!("{}: valid", path.display());
-        println!("  bus: {bus}, {:.0} kbit/s", c.bus.bitrate / 1e3);
-        println!(
-            "  cycle: {} Hz, worst-case bus load {:.1} % (limit {:.1} %)",
-            c.control.rate_hz,
-            loaded.bus_load * 100.0,
-            c.bus.max_load * 100.0
-        );
-        println!(
-            "  model: {} ({})",
-            loaded.model_path.display(),
-            if stiff.is_empty() {
-                "rigid joints: no compensation".to_string()
-            } else {
-                format!("compensating {}", stiff.join(", "))
-            }
-        );
-        println!(
-            "  torques from: {:?}; payload {} N",
-            c.control.torque_source, c.payload_n
-        );
-        println!(
-            "  api: {} (mode {:o})",
-            c.api.socket.display(),
-            loaded.socket_mode
-        );
-        return ExitCode::SUCCESS;
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("pa10d: error: {e:#}");
+            ExitCode::FAILURE
+        }
     }
-    eprintln!(
-        "pa10d: {} is valid, but the control loop is not implemented yet (tracked by the [daemon] issue); \
-         refusing to start. Nothing was sent to any bus.",
-        path.display()
+}
+
+fn check(path: &Path) -> Result<()> {
+    let loaded = Config::load(path)?;
+    let c = &loaded.config;
+    let bus = match c.bus.backend {
+        Backend::Socketcan => format!("socketcan on {}", c.bus.interface.as_deref().unwrap_or("?")),
+        Backend::Virtual => "virtual bus with the simulated controller".to_string(),
+    };
+    let stiff: Vec<String> = (0..6)
+        .filter(|&j| loaded.model.stiffness(j).is_some())
+        .map(|j| format!("J{}", j + 1))
+        .collect();
+    println!("{}: valid", path.display());
+    println!("  bus: {bus}, {:.0} kbit/s", c.bus.bitrate / 1e3);
+    println!(
+        "  cycle: {} Hz, worst-case bus load {:.1} % (limit {:.1} %)",
+        c.control.rate_hz,
+        loaded.bus_load * 100.0,
+        c.bus.max_load * 100.0
     );
-    ExitCode::FAILURE
+    println!(
+        "  model: {} ({})",
+        loaded.model_path.display(),
+        if stiff.is_empty() {
+            "rigid joints: no compensation".to_string()
+        } else {
+            format!("compensating {}", stiff.join(", "))
+        }
+    );
+    println!(
+        "  torques from: {:?}; payload {} N",
+        c.control.torque_source, c.payload_n
+    );
+    println!(
+        "  api: {} (mode {:o})",
+        c.api.socket.display(),
+        loaded.socket_mode
+    );
+    Ok(())
+}
+
+fn run(path: &Path) -> Result<()> {
+    let loaded = Config::load(path)?;
+    let filter =
+        tracing_subscriber::EnvFilter::try_new(&loaded.config.log_level).context("log_level")?;
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .init();
+    tracing::info!(config = %path.display(), rate_hz = loaded.config.control.rate_hz, "starting");
+    let mut daemon = Daemon::start(&loaded).context("starting the control loop")?;
+    let shared = daemon.shared.clone();
+    tracing::info!("servo controller in control mode");
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .context("API runtime")?;
+    let socket = loaded.config.api.socket.clone();
+    let mode = loaded.socket_mode;
+    let result = rt.block_on(async move {
+        let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+        let api_shared = shared.clone();
+        let api = tokio::spawn(async move { pa10::daemon::api::serve(&socket, mode, api_shared, stop_rx).await });
+        let _ = sd_notify::notify(&[NotifyState::Ready, NotifyState::Status("control loop running")]);
+        // systemd watchdog: ping only while the loop advances and is not faulted
+        let wd = sd_notify::watchdog_enabled();
+        let mut last_cycles = 0u64;
+        let mut tick = tokio::time::interval(wd.map(|d| d / 2).unwrap_or(Duration::from_secs(1)));
+        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).context("SIGTERM handler")?;
+        loop {
+            tokio::select! {
+                _ = tick.tick() => {
+                    let s = lock(&shared);
+                    let st = s.status();
+                    let progressed = st.cycle.cycles > last_cycles;
+                    last_cycles = st.cycle.cycles;
+                    drop(s);
+                    if wd.is_some() && progressed {
+                        let _ = sd_notify::notify(&[NotifyState::Watchdog]);
+                    }
+                    let _ = sd_notify::notify(&[NotifyState::Status(&format!("{} ({} cycles)", st.state, st.cycle.cycles))]);
+                    if !progressed && last_cycles > 0 {
+                        tracing::error!("control loop stalled");
+                    }
+                }
+                _ = tokio::signal::ctrl_c() => break,
+                _ = term.recv() => break,
+            }
+        }
+        tracing::info!("signal received: stopping the arm");
+        let _ = sd_notify::notify(&[NotifyState::Stopping]);
+        let _ = stop_tx.send(true);
+        let _ = api.await;
+        anyhow::Ok(())
+    });
+    daemon.shutdown();
+    tracing::info!("stopped");
+    result
 }

@@ -205,6 +205,25 @@ impl Controller {
         Ok(())
     }
 
+    /// Move limits in use: speed (rad/s) and acceleration (rad/s²).
+    pub fn limits(&self) -> ([f64; 6], [f64; 6]) {
+        (self.p.speed, self.p.acceleration)
+    }
+
+    /// Payload hung at the tool, N.
+    pub fn payload_n(&self) -> f64 {
+        self.p.payload_n
+    }
+
+    /// Takes `state` as the truth after the servo was restarted: hold where the arm is and
+    /// clear any fault.
+    pub fn resync(&mut self, state: &JointState) {
+        self.last_state = Some(*state);
+        self.last_feedback_s = state.stamp_s;
+        self.activity = Activity::Faulted(Fault::Controller);
+        self.reset();
+    }
+
     /// Clears a fault: hold where the arm is now.
     pub fn reset(&mut self) {
         if let (Activity::Faulted(_), Some(s)) = (&self.activity, self.last_state) {

@@ -1,0 +1,289 @@
+//! End to end: the daemon core on the virtual backend with the simulated controller (a hidden
+//! true robot), driven through the client API; positions are judged by the simulator's
+//! ground truth. These run in real time at 500 Hz, a few seconds in all.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
+use pa10::daemon::api::handle;
+use pa10::daemon::config::Config;
+use pa10::daemon::runtime::Daemon;
+use pa10::model::{Frame, Model, pose_parts};
+use pa10::sim::experiment::{CampaignSpec, paper_campaign};
+use serde_json::{Value, json};
+
+const SEED: u64 = 3;
+
+fn temp_dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pa10-daemon-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A sim.yaml variant in `dir` using `model` and a socket inside `dir`.
+fn config(dir: &Path, model: &Model) -> PathBuf {
+    model.save(dir.join("model.yaml")).unwrap();
+    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.yaml"))
+        .unwrap()
+        .replace("model: model-nominal.yaml", "model: model.yaml")
+        .replace(
+            "socket: /tmp/pa10d-sim.sock",
+            &format!("socket: {}", dir.join("api.sock").display()),
+        )
+        .replace("  seed: 1", &format!("  seed: {SEED}"));
+    let p = dir.join("pa10d.yaml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn call(d: &Daemon, req: Value) -> Value {
+    handle(&d.shared, &req.to_string())
+}
+
+fn wait_holding(d: &Daemon, timeout: Duration) -> Value {
+    let end = Instant::now() + timeout;
+    loop {
+        let st = call(d, json!({"cmd": "status"}))["status"].clone();
+        if st["state"] == "holding" || st["state"] == "fault" || Instant::now() > end {
+            return st;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Tool targets in the instrument frame, inside the calibrated volume.
+fn targets(truth_base: &Frame) -> Vec<Frame> {
+    let down = nalgebra::UnitQuaternion::from_axis_angle(
+        &nalgebra::Vector3::x_axis(),
+        std::f64::consts::PI,
+    );
+    [[0.55, -0.12, 0.05], [0.62, 0.12, 0.18]]
+        .iter()
+        .map(|p| {
+            truth_base.inverse()
+                * Frame::from_parts(
+                    nalgebra::Translation3::new(p[0], p[1], p[2]),
+                    down.to_rotation_matrix(),
+                )
+        })
+        .collect()
+}
+
+/// Mean error (mm) of the daemon running `model` at `load_n`, judged by ground truth.
+fn drive(model: &Model, load_n: f64) -> f64 {
+    let dir = temp_dir(&format!("drive{}", load_n as u32));
+    let loaded = Config::load(&config(&dir, model)).unwrap();
+    let d = Daemon::start(&loaded).unwrap();
+    let sim = d.sim.clone().unwrap();
+    sim.lock().unwrap().set_load(load_n);
+    assert_eq!(
+        call(&d, json!({"cmd": "set_payload", "newtons": load_n}))["ok"],
+        true
+    );
+    let truth_base = *sim.lock().unwrap().truth().model.base_from_instrument();
+    let mut sum = 0.0;
+    let ts = targets(&truth_base);
+    for target_inst in &ts {
+        let target = model.base_from_instrument() * target_inst;
+        let (p, q) = pose_parts(&target);
+        let r = call(
+            &d,
+            json!({"cmd": "move_pose", "position": p, "quaternion": q}),
+        );
+        assert_eq!(r["ok"], true, "{r}");
+        let st = wait_holding(&d, Duration::from_secs(10));
+        assert_eq!(st["state"], "holding", "{st}");
+        std::thread::sleep(Duration::from_millis(300)); // settle
+        let got = truth_base.inverse() * sim.lock().unwrap().true_tool_pose();
+        sum += (got.translation.vector - target_inst.translation.vector).norm() * 1e3;
+    }
+    drop(d);
+    std::fs::remove_dir_all(&dir).unwrap();
+    sum / ts.len() as f64
+}
+
+#[test]
+fn move_pose_through_the_daemon_lands_near_the_floor_where_the_nominal_model_misses() {
+    let camp = paper_campaign(&CampaignSpec {
+        seed: SEED,
+        repeats: 3,
+        ..Default::default()
+    })
+    .unwrap();
+    let calibrated = calibrate(
+        &Model::nominal(),
+        &camp.cal,
+        Some(&camp.lines),
+        &CalibOptions {
+            starts: 1,
+            ..Default::default()
+        },
+        &|_| {},
+    )
+    .unwrap()
+    .model;
+    let nominal = fit_base_only(
+        &Model::nominal(),
+        &camp.cal,
+        Some(&camp.lines),
+        &CalibOptions::default(),
+    )
+    .unwrap();
+    let (cal0, cal90, nom90) = (
+        drive(&calibrated, 0.0),
+        drive(&calibrated, 90.0),
+        drive(&nominal, 90.0),
+    );
+    eprintln!(
+        "daemon, calibrated: {cal0:.3} mm at 0 N, {cal90:.3} mm at 90 N; nominal: {nom90:.3} mm at 90 N"
+    );
+    assert!(
+        cal0 < 0.45 && cal90 < 0.45,
+        "calibrated {cal0} / {cal90} mm"
+    );
+    assert!(nom90 > 4.0 * cal90, "nominal {nom90} mm");
+}
+
+#[test]
+fn bad_requests_are_refused_and_change_nothing_and_estop_needs_reset() {
+    let dir = temp_dir("bad");
+    let loaded = Config::load(&config(
+        &dir,
+        &Model::nominal()
+            .with_tool(&pa10::model::frame_from_pose(
+                [0.0, 0.0, 0.35],
+                [1.0, 0.0, 0.0, 0.0],
+            ))
+            .unwrap(),
+    ))
+    .unwrap();
+    let d = Daemon::start(&loaded).unwrap();
+    std::thread::sleep(Duration::from_millis(100));
+    let before = call(&d, json!({"cmd": "status"}))["status"]["setpoint"].clone();
+    for (req, msg) in [
+        (json!("{not json"), "bad request"),
+        (json!({"cmd": "fly"}), "bad request"),
+        (
+            json!({"cmd": "move_joints", "q": [0.0, 2.5, 0.0, 0.0, 0.0, 0.0]}),
+            "joint 2",
+        ),
+        (
+            json!({"cmd": "move_joints", "q": [0.0, 0.0]}),
+            "bad request",
+        ),
+        (
+            json!({"cmd": "move_pose", "position": [3.0, 0.0, 0.5], "quaternion": [0.0, 1.0, 0.0, 0.0]}),
+            "path",
+        ),
+        (
+            json!({"cmd": "move_pose", "position": [0.5, 0.0, 0.5], "quaternion": [1.0, 1.0, 0.0, 0.0]}),
+            "unit",
+        ),
+        (json!({"cmd": "set_payload", "newtons": -5.0}), "payload"),
+        (
+            json!({"cmd": "load_model", "path": "/nonexistent.yaml"}),
+            "nonexistent",
+        ),
+    ] {
+        let line = if let Value::String(s) = &req {
+            s.clone()
+        } else {
+            req.to_string()
+        };
+        let r = handle(&d.shared, &line);
+        assert_eq!(r["ok"], false, "{req}: {r}");
+        assert!(r["error"].as_str().unwrap().contains(msg), "{req}: {r}");
+    }
+    let after = call(&d, json!({"cmd": "status"}))["status"].clone();
+    assert_eq!(after["state"], "holding");
+    assert_eq!(after["setpoint"], before);
+    // estop: the servo stops, the daemon reports a fault, moves are refused until reset
+    assert_eq!(call(&d, json!({"cmd": "estop"}))["ok"], true);
+    std::thread::sleep(Duration::from_millis(100));
+    let st = call(&d, json!({"cmd": "status"}))["status"].clone();
+    assert_eq!(st["state"], "fault", "{st}");
+    assert_eq!(st["servo"], "Stopped", "{st}");
+    let r = call(
+        &d,
+        json!({"cmd": "move_joints", "q": [0.1, 0.4, 1.6, 0.0, 1.1, 0.0]}),
+    );
+    assert_eq!(r["ok"], false);
+    assert_eq!(call(&d, json!({"cmd": "reset"}))["ok"], true);
+    // the next cycles re-run the start-up handshake; wait until the fault is gone
+    let end = Instant::now() + Duration::from_secs(2);
+    let mut st = call(&d, json!({"cmd": "status"}))["status"].clone();
+    while st["state"] != "holding" && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(20));
+        st = call(&d, json!({"cmd": "status"}))["status"].clone();
+    }
+    assert_eq!(st["state"], "holding", "{st}");
+    assert_eq!(st["servo"], "Control", "{st}");
+    let r = call(
+        &d,
+        json!({"cmd": "move_joints", "q": [0.1, 0.4, 1.6, 0.0, 1.1, 0.0]}),
+    );
+    assert_eq!(r["ok"], true, "{r}");
+    assert_eq!(wait_holding(&d, Duration::from_secs(5))["state"], "holding");
+    drop(d);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_feedback_timeout_stops_the_arm_when_the_controller_goes_silent() {
+    let dir = temp_dir("silent");
+    let loaded = Config::load(&config(&dir, &Model::nominal())).unwrap();
+    let d = Daemon::start(&loaded).unwrap();
+    std::thread::sleep(Duration::from_millis(50));
+    // every axis stops answering
+    d.sim.as_ref().unwrap().lock().unwrap().injected.mute_axis = Some(1);
+    std::thread::sleep(Duration::from_millis(200));
+    let st = call(&d, json!({"cmd": "status"}))["status"].clone();
+    assert_eq!(st["state"], "fault", "{st}");
+    assert!(
+        st["fault"].as_str().unwrap().contains("stale feedback"),
+        "{st}"
+    );
+    assert!(st["link"]["incomplete"].as_u64().unwrap() > 5);
+    drop(d);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
+    let dir = temp_dir("bin");
+    let cfg = config(&dir, &Model::nominal());
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_pa10d"))
+        .args(["--config", cfg.to_str().unwrap()])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let sock = dir.join("api.sock");
+    let end = Instant::now() + Duration::from_secs(10);
+    while !sock.exists() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    use std::io::{BufRead, Write};
+    let mut s = std::os::unix::net::UnixStream::connect(&sock).unwrap();
+    s.write_all(b"{\"cmd\":\"status\"}\n").unwrap();
+    let mut line = String::new();
+    std::io::BufReader::new(s.try_clone().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let v: Value = serde_json::from_str(&line).unwrap();
+    assert_eq!(v["ok"], true);
+    assert_eq!(v["status"]["servo"], "Control");
+    #[cfg(unix)]
+    {
+        let pid = child.id() as i32;
+        // SIGTERM through the shell's kill: no libc dependency in the tests
+        std::process::Command::new("kill")
+            .args(["-TERM", &pid.to_string()])
+            .status()
+            .unwrap();
+    }
+    let status = child.wait().unwrap();
+    assert!(status.success(), "{status:?}");
+    assert!(!sock.exists(), "socket removed on exit");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
