@@ -15,6 +15,14 @@ use serde_json::{Value, json};
 
 const SEED: u64 = 3;
 
+/// The daemon tests run in real time (a control thread and a simulator thread each): one at
+/// a time, so that two-core CI machines do not starve their cycles.
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|p| p.into_inner())
+}
+
 fn temp_dir(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("pa10-daemon-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -31,7 +39,10 @@ fn config(dir: &Path, model: &Model) -> PathBuf {
             "socket: /tmp/pa10d-sim.sock",
             &format!("socket: {}", dir.join("api.sock").display()),
         )
-        .replace("  seed: 1", &format!("  seed: {SEED}"));
+        .replace("  seed: 1", &format!("  seed: {SEED}"))
+        // generous safety margins: the test machine runs other tests beside this loop
+        .replace("following_error: 0.01", "following_error: 0.05")
+        .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100");
     let p = dir.join("pa10d.yaml");
     std::fs::write(&p, text).unwrap();
     p
@@ -105,6 +116,7 @@ fn drive(model: &Model, load_n: f64) -> f64 {
 
 #[test]
 fn move_pose_through_the_daemon_lands_near_the_floor_where_the_nominal_model_misses() {
+    let _serial = serial();
     let camp = paper_campaign(&CampaignSpec {
         seed: SEED,
         repeats: 3,
@@ -147,6 +159,7 @@ fn move_pose_through_the_daemon_lands_near_the_floor_where_the_nominal_model_mis
 
 #[test]
 fn bad_requests_are_refused_and_change_nothing_and_estop_needs_reset() {
+    let _serial = serial();
     let dir = temp_dir("bad");
     let loaded = Config::load(&config(
         &dir,
@@ -231,13 +244,14 @@ fn bad_requests_are_refused_and_change_nothing_and_estop_needs_reset() {
 
 #[test]
 fn the_feedback_timeout_stops_the_arm_when_the_controller_goes_silent() {
+    let _serial = serial();
     let dir = temp_dir("silent");
     let loaded = Config::load(&config(&dir, &Model::nominal())).unwrap();
     let d = Daemon::start(&loaded).unwrap();
     std::thread::sleep(Duration::from_millis(50));
     // every axis stops answering
     d.sim.as_ref().unwrap().lock().unwrap().injected.mute_axis = Some(1);
-    std::thread::sleep(Duration::from_millis(200));
+    std::thread::sleep(Duration::from_millis(400));
     let st = call(&d, json!({"cmd": "status"}))["status"].clone();
     assert_eq!(st["state"], "fault", "{st}");
     assert!(
@@ -251,6 +265,7 @@ fn the_feedback_timeout_stops_the_arm_when_the_controller_goes_silent() {
 
 #[test]
 fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
+    let _serial = serial();
     let dir = temp_dir("bin");
     let cfg = config(&dir, &Model::nominal());
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_pa10d"))
