@@ -288,6 +288,50 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     let v: Value = serde_json::from_str(&line).unwrap();
     assert_eq!(v["ok"], true);
     assert_eq!(v["status"]["servo"], "Control");
+    // the pa10 client wraps every call
+    let pa10 = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
+            .args(args)
+            .env("PA10D_SOCKET", &sock)
+            .output()
+            .unwrap()
+    };
+    let o = pa10(&["status", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["status"]["state"], "holding");
+    let o = pa10(&[
+        "move", "joints", "--wait", "0.1", "0.45", "1.55", "0", "1.1", "-0.1",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("state \"holding\""),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let o = pa10(&["status", "--json"]);
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let sp: Vec<f64> = v["status"]["setpoint"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    assert!(
+        (sp[0] - 0.1).abs() < 1e-9 && (sp[5] + 0.1).abs() < 1e-9,
+        "{sp:?}"
+    );
+    let o = pa10(&["payload", "--", "-5"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr)
+            .contains("pa10d refused: payload must be within 0…500 N"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let o = pa10(&["move", "pose", "3", "0", "0.5", "0", "1", "0", "0"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(pa10(&["stop"]).status.success());
     #[cfg(unix)]
     {
         let pid = child.id() as i32;

@@ -197,7 +197,20 @@ pub async fn serve(
                         }
                     }
                 }
-                let resp = handle(&shared, &line);
+                let cmd = serde_json::from_str::<Value>(&line)
+                    .ok()
+                    .and_then(|v| v["cmd"].as_str().map(str::to_string))
+                    .unwrap_or_default();
+                let span = tracing::info_span!("request", cmd = %cmd);
+                let resp = span.in_scope(|| {
+                    let r = handle(&shared, &line);
+                    if r["ok"] == true {
+                        tracing::info!("done");
+                    } else {
+                        tracing::warn!(error = %r["error"], "refused");
+                    }
+                    r
+                });
                 if w.write_all(format!("{resp}\n").as_bytes()).await.is_err() {
                     return;
                 }

@@ -6,4 +6,5 @@ pub mod config;
 pub mod control;
 pub mod link;
 pub mod motion;
+pub mod realtime;
 pub mod runtime;

@@ -247,6 +247,13 @@ impl Daemon {
         let stop = Arc::new(AtomicBool::new(false));
         let (ready_tx, ready_rx) = std::sync::mpsc::channel::<Result<(), String>>();
         let model = loaded.model.clone();
+        let prio = c.control.realtime.sched_fifo_priority;
+        if c.control.realtime.mlockall {
+            match super::realtime::lock_memory() {
+                Ok(()) => tracing::info!("memory locked (mlockall)"),
+                Err(e) => tracing::warn!(error = %e, "mlockall not permitted; memory may page"),
+            }
+        }
         let (thread, sim, sim_stop, sim_rt) = match c.bus.backend {
             Backend::Virtual => {
                 let bus = VirtualBus::new(VirtualConfig::default());
@@ -295,6 +302,7 @@ impl Daemon {
                     stop.clone(),
                     ready_tx,
                     c.limits.feedback_timeout_ms,
+                    prio,
                 )?;
                 (th, Some(servo_sim), Some(tx), Some(rt))
             }
@@ -311,6 +319,7 @@ impl Daemon {
                         stop.clone(),
                         ready_tx,
                         c.limits.feedback_timeout_ms,
+                        prio,
                     )?;
                     (th, None, None, None)
                 }
@@ -360,6 +369,7 @@ impl Drop for Daemon {
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 fn spawn_control<B: CanBus + 'static>(
     bus: B,
     model: Model,
@@ -368,10 +378,22 @@ fn spawn_control<B: CanBus + 'static>(
     stop: Arc<AtomicBool>,
     ready: std::sync::mpsc::Sender<Result<(), String>>,
     watchdog_ms: f64,
+    rt_priority: Option<u8>,
 ) -> Result<std::thread::JoinHandle<()>, DaemonError> {
     std::thread::Builder::new()
         .name("pa10d-control".into())
-        .spawn(move || control_loop(bus, model, params, shared, stop, ready, watchdog_ms))
+        .spawn(move || {
+            control_loop(
+                bus,
+                model,
+                params,
+                shared,
+                stop,
+                ready,
+                watchdog_ms,
+                rt_priority,
+            )
+        })
         .map_err(|e| DaemonError::Startup(format!("control thread: {e}")))
 }
 
@@ -462,6 +484,7 @@ fn control_loop<B: CanBus>(
     stop: Arc<AtomicBool>,
     ready: std::sync::mpsc::Sender<Result<(), String>>,
     watchdog_ms: f64,
+    rt_priority: Option<u8>,
 ) {
     let rt = match tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -473,6 +496,14 @@ fn control_loop<B: CanBus>(
             return;
         }
     };
+    if let Some(prio) = rt_priority {
+        match super::realtime::set_fifo(prio) {
+            Ok(()) => tracing::info!(priority = prio, "control thread runs SCHED_FIFO"),
+            Err(e) => {
+                tracing::warn!(priority = prio, error = %e, "SCHED_FIFO not permitted; running at normal priority")
+            }
+        }
+    }
     let t0 = Instant::now();
     let period = Duration::from_secs_f64(params.period_s);
     let wd = (watchdog_ms.round() as u8).max(1);
@@ -496,6 +527,8 @@ fn control_loop<B: CanBus>(
     let mut cycle: u16 = 20;
     let mut deadline = Instant::now() + period;
     let mut stop_sent = false;
+    let mut last_warning = Instant::now();
+    let mut fault_logged = false;
     let mut stopping_for_exit = false;
     loop {
         let now = Instant::now();
@@ -615,6 +648,18 @@ fn control_loop<B: CanBus>(
                 Err(e) => lock(&shared).fault = Some(format!("restart: {e}")),
             }
             deadline = Instant::now() + period;
+        }
+        if overrun && woke.duration_since(last_warning) > Duration::from_secs(1) {
+            // rate-limited: at most one warning a second from the loop
+            last_warning = woke;
+            tracing::warn!(late_us = late.as_micros() as u64, "control cycle overrun");
+        }
+        if faulted && !fault_logged {
+            fault_logged = true;
+            tracing::error!(status = ?lock(&shared).status().fault, "fault: the arm is stopped until reset");
+        }
+        if !faulted {
+            fault_logged = false;
         }
         compute.record(woke.elapsed().as_secs_f64() * 1e6);
         {

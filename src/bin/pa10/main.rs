@@ -5,6 +5,7 @@
 
 mod accuracy_cmd;
 mod calib_cmd;
+mod client_cmd;
 mod model_cmds;
 
 use std::process::ExitCode;
@@ -31,6 +32,43 @@ enum Command {
     Calibrate(calib_cmd::CalibrateArgs),
     /// Simulated PA10: the servo controller on a CAN interface, measurement campaigns, replay.
     Sim(calib_cmd::SimArgs),
+    /// Daemon: its state (pose, joints, faults, cycle statistics).
+    Status(client_cmd::Conn),
+    /// Daemon: move the arm (joint or straight-line tool move).
+    Move {
+        #[command(flatten)]
+        conn: client_cmd::Conn,
+        #[command(subcommand)]
+        cmd: client_cmd::MoveCmd,
+    },
+    /// Daemon: controlled stop.
+    Stop(client_cmd::Conn),
+    /// Daemon: immediate servo stop and brakes (a software stop: the hardware e-stop stays in charge).
+    Estop(client_cmd::Conn),
+    /// Daemon: clear a fault and bring the servo back to control mode.
+    Reset(client_cmd::Conn),
+    /// Daemon: set the weight hung at the tool, N.
+    Payload {
+        #[command(flatten)]
+        conn: client_cmd::Conn,
+        /// Newtons.
+        newtons: f64,
+    },
+    /// Daemon: load a (calibrated) model file between moves.
+    LoadModel {
+        #[command(flatten)]
+        conn: client_cmd::Conn,
+        /// The model YAML (a path the daemon can read).
+        file: std::path::PathBuf,
+    },
+    /// Daemon: stream its state.
+    Watch {
+        #[command(flatten)]
+        conn: client_cmd::Conn,
+        /// Updates per second.
+        #[arg(long, default_value_t = 2.0)]
+        rate_hz: f64,
+    },
     /// Model files.
     #[command(subcommand)]
     Model(model_cmds::ModelCmd),
@@ -45,6 +83,23 @@ fn main() -> ExitCode {
         Command::Accuracy(a) => accuracy_cmd::accuracy(&a),
         Command::Calibrate(a) => calib_cmd::calibrate(&a),
         Command::Sim(c) => calib_cmd::sim(&c),
+        Command::Status(c) => client_cmd::status(&c),
+        Command::Move { conn, cmd } => client_cmd::move_cmd(&conn, &cmd),
+        Command::Stop(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "stop"})),
+        Command::Estop(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "estop"})),
+        Command::Reset(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "reset"})),
+        Command::Payload { conn, newtons } => client_cmd::simple(
+            &conn,
+            serde_json::json!({"cmd": "set_payload", "newtons": newtons}),
+        ),
+        Command::LoadModel { conn, file } => {
+            let path = std::fs::canonicalize(&file).unwrap_or(file);
+            client_cmd::simple(
+                &conn,
+                serde_json::json!({"cmd": "load_model", "path": path}),
+            )
+        }
+        Command::Watch { conn, rate_hz } => client_cmd::watch(&conn, rate_hz),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
