@@ -61,6 +61,44 @@ fn bench(c: &mut Criterion) {
     c.bench_function("ik (all branches, refined)", |b| {
         b.iter(|| m.ik(black_box(&target), black_box(&q)))
     });
+
+    // One control cycle of the daemon (sans IO): torque estimate, compensation, position loop,
+    // safety checks — holding, and following a Cartesian move (IK per setpoint).
+    use pa10::daemon::config::TorqueSource;
+    use pa10::daemon::control::{Controller, JointState, LoopParams};
+    use pa10::daemon::motion::Move;
+    let params = LoopParams {
+        period_s: 0.002,
+        gain: 20.0,
+        torque_source: TorqueSource::Measured,
+        filter_hz: 20.0,
+        torque_constants: [15.0, 30.0, 15.0, 5.0, 5.0, 2.0],
+        payload_n: 44.0,
+        speed: [0.5, 0.5, 1.0, 2.0, 2.0, 2.0],
+        acceleration: [1.0, 1.0, 2.0, 4.0, 4.0, 4.0],
+        following_error: 0.05,
+        feedback_timeout_s: 1e9,
+    };
+    let js = JointState {
+        q_motor: q,
+        current: [0.0, -3.0, -1.5, 0.0, -0.4, 0.0],
+        stamp_s: 0.0,
+        controller_fault: false,
+    };
+    let mut hold = Controller::new(m.clone(), params.clone(), &js);
+    c.bench_function("control cycle (holding)", |b| {
+        b.iter(|| hold.step(black_box(0.0), Some(black_box(&js))))
+    });
+    let mut moving = Controller::new(m.clone(), params, &js);
+    let mut goal = target;
+    goal.translation.vector += nalgebra::Vector3::new(0.05, 0.05, 0.0);
+    let v = [0.5, 0.5, 1.0, 2.0, 2.0, 2.0];
+    let a = [1.0, 1.0, 2.0, 4.0, 4.0, 4.0];
+    let mv = Move::cartesian(&m, moving.setpoint().q, goal, &v, &a).expect("path");
+    moving.start_move(mv, 0.0).expect("start");
+    c.bench_function("control cycle (Cartesian move, IK per setpoint)", |b| {
+        b.iter(|| moving.step(black_box(0.01), Some(black_box(&js))))
+    });
 }
 
 criterion_group!(benches, bench);

@@ -1,0 +1,74 @@
+//! Control-cycle timing of the daemon on the virtual bus with the simulated controller.
+//!
+//! `cargo run --release --example daemon_cycle [SECONDS]` — runs the daemon core at 500 Hz and
+//! at the highest rate the 90 % bus budget allows, moving the arm back and forth, and prints
+//! the cycle statistics `status` reports (wake-up jitter and cycle compute time, p50/p99/max).
+//! BENCHMARKS.md quotes its output.
+
+use std::time::Duration;
+
+use pa10::daemon::api::handle;
+use pa10::daemon::config::Config;
+use pa10::daemon::runtime::Daemon;
+use serde_json::{Value, json};
+
+fn main() {
+    let secs: f64 = std::env::args()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(10.0);
+    let base = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
+    let text = std::fs::read_to_string(base.join("sim.yaml")).expect("config/sim.yaml");
+    let max_rate = (0.9 * 1e6 / pa10::can::protocol::cycle_bits_worst() as f64).floor();
+    println!(
+        "| rate | cycles | overruns | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | bus load |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for rate in [500.0, max_rate] {
+        let sock = std::env::temp_dir().join(format!("pa10-cycle-{}.sock", std::process::id()));
+        let t = text
+            .replace("rate_hz: 500", &format!("rate_hz: {rate}"))
+            .replace(
+                "socket: /tmp/pa10d-sim.sock",
+                &format!("socket: {}", sock.display()),
+            );
+        let cfg = Config::parse(&t, "bench")
+            .expect("config")
+            .validate(&base)
+            .expect("valid");
+        let d = Daemon::start(&cfg).expect("daemon");
+        let a = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
+        let b = [0.3, 0.6, 1.3, 0.4, 0.8, 0.5];
+        let end = std::time::Instant::now() + Duration::from_secs_f64(secs);
+        let mut k = 0;
+        while std::time::Instant::now() < end {
+            let q = if k % 2 == 0 { b } else { a };
+            let r = handle(
+                &d.shared,
+                &json!({"cmd": "move_joints", "q": q}).to_string(),
+            );
+            let dur = r["duration_s"].as_f64().unwrap_or(0.5);
+            std::thread::sleep(Duration::from_secs_f64(dur + 0.1));
+            k += 1;
+        }
+        let st: Value = handle(&d.shared, r#"{"cmd":"status"}"#)["status"].clone();
+        let c = &st["cycle"];
+        let f = |v: &Value| {
+            format!(
+                "{:.0} / {:.0} / {:.0}",
+                v[0].as_f64().unwrap_or(0.0),
+                v[1].as_f64().unwrap_or(0.0),
+                v[2].as_f64().unwrap_or(0.0)
+            )
+        };
+        println!(
+            "| {rate} Hz | {} | {} | {} | {} | {:.1} % |",
+            c["cycles"],
+            c["overruns"],
+            f(&c["jitter_us"]),
+            f(&c["compute_us"]),
+            c["bus_load_pct"].as_f64().unwrap_or(0.0)
+        );
+        assert_eq!(st["state"], "holding", "{st}");
+    }
+}
