@@ -208,6 +208,8 @@ pub struct Daemon {
     thread: Option<std::thread::JoinHandle<()>>,
     /// The simulated controller (virtual backend only): ground truth for tests and demos.
     pub sim: Option<SharedServo>,
+    /// The virtual bus (virtual backend only): for fault injection.
+    pub bus: Option<VirtualBus>,
     sim_stop: Option<tokio::sync::watch::Sender<bool>>,
     _sim_rt: Option<tokio::runtime::Runtime>,
 }
@@ -254,7 +256,7 @@ impl Daemon {
                 Err(e) => tracing::warn!(error = %e, "mlockall not permitted; memory may page"),
             }
         }
-        let (thread, sim, sim_stop, sim_rt) = match c.bus.backend {
+        let (thread, sim, vbus, sim_stop, sim_rt) = match c.bus.backend {
             Backend::Virtual => {
                 let bus = VirtualBus::new(VirtualConfig::default());
                 let sim_cfg = c.sim.clone().unwrap_or_default();
@@ -304,7 +306,7 @@ impl Daemon {
                     c.limits.feedback_timeout_ms,
                     prio,
                 )?;
-                (th, Some(servo_sim), Some(tx), Some(rt))
+                (th, Some(servo_sim), Some(bus), Some(tx), Some(rt))
             }
             Backend::Socketcan => {
                 #[cfg(target_os = "linux")]
@@ -321,7 +323,7 @@ impl Daemon {
                         c.limits.feedback_timeout_ms,
                         prio,
                     )?;
-                    (th, None, None, None)
+                    (th, None, None, None, None)
                 }
                 #[cfg(not(target_os = "linux"))]
                 return Err(DaemonError::Startup("SocketCAN needs Linux".into()));
@@ -332,6 +334,7 @@ impl Daemon {
             stop,
             thread: Some(thread),
             sim,
+            bus: vbus,
             sim_stop,
             _sim_rt: sim_rt,
         };
