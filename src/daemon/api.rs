@@ -62,6 +62,24 @@ fn err(msg: impl std::fmt::Display) -> Value {
     json!({ "ok": false, "error": msg.to_string() })
 }
 
+/// Starts a planned move, or says why not.
+fn start(
+    ctl: &mut super::control::Controller,
+    planned: Result<Move, super::motion::MoveError>,
+    now: f64,
+) -> Value {
+    match planned {
+        Ok(mv) => {
+            let d = mv.duration();
+            match ctl.start_move(mv, now) {
+                Ok(()) => json!({ "ok": true, "duration_s": d }),
+                Err(e) => err(e),
+            }
+        }
+        Err(e) => err(e),
+    }
+}
+
 /// Handles one request line; `Subscribe` is answered by [`serve`] and rejected here.
 pub fn handle(shared: &Mutex<Shared>, line: &str) -> Value {
     let req: Request = match serde_json::from_str(line) {
@@ -84,16 +102,8 @@ pub fn handle(shared: &Mutex<Shared>, line: &str) -> Value {
             if let Some(f) = link_fault {
                 return err(format!("faulted ({f}); send reset first"));
             }
-            match Move::joints(ctl.model(), ctl.setpoint().q, q, &limits_v.0, &limits_v.1) {
-                Ok(mv) => {
-                    let d = mv.duration();
-                    match ctl.start_move(mv, now) {
-                        Ok(()) => json!({ "ok": true, "duration_s": d }),
-                        Err(e) => err(e),
-                    }
-                }
-                Err(e) => err(e),
-            }
+            let planned = Move::joints(ctl.model(), ctl.setpoint().q, q, &limits_v.0, &limits_v.1);
+            start(ctl, planned, now)
         }
         Request::MovePose {
             position,
@@ -110,22 +120,14 @@ pub fn handle(shared: &Mutex<Shared>, line: &str) -> Value {
                 ));
             }
             let target = frame_from_pose(position, quaternion);
-            match Move::cartesian(
+            let planned = Move::cartesian(
                 ctl.model(),
                 ctl.setpoint().q,
                 target,
                 &limits_v.0,
                 &limits_v.1,
-            ) {
-                Ok(mv) => {
-                    let d = mv.duration();
-                    match ctl.start_move(mv, now) {
-                        Ok(()) => json!({ "ok": true, "duration_s": d }),
-                        Err(e) => err(e),
-                    }
-                }
-                Err(e) => err(e),
-            }
+            );
+            start(ctl, planned, now)
         }
         Request::Stop => {
             ctl.stop();
