@@ -297,7 +297,7 @@ impl Daemon {
                 ));
                 let ep = bus.endpoint(false);
                 let th = spawn_control(
-                    ep,
+                    move || Ok(ep),
                     model,
                     params,
                     shared.clone(),
@@ -312,9 +312,8 @@ impl Daemon {
                 #[cfg(target_os = "linux")]
                 {
                     let iface = c.bus.interface.clone().unwrap_or_default();
-                    let bus = crate::can::socketcan_bus::SocketCanBus::open(&iface)?;
                     let th = spawn_control(
-                        bus,
+                        move || crate::can::socketcan_bus::SocketCanBus::open(&iface),
                         model,
                         params,
                         shared.clone(),
@@ -373,8 +372,8 @@ impl Drop for Daemon {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn spawn_control<B: CanBus + 'static>(
-    bus: B,
+fn spawn_control<B: CanBus + 'static, F: FnOnce() -> Result<B, BusError> + Send + 'static>(
+    open_bus: F,
     model: Model,
     params: LoopParams,
     shared: Arc<Mutex<Shared>>,
@@ -387,7 +386,7 @@ fn spawn_control<B: CanBus + 'static>(
         .name("pa10d-control".into())
         .spawn(move || {
             control_loop(
-                bus,
+                open_bus,
                 model,
                 params,
                 shared,
@@ -479,8 +478,8 @@ fn handshake<B: CanBus>(
 }
 
 #[allow(clippy::too_many_arguments)]
-fn control_loop<B: CanBus>(
-    mut bus: B,
+fn control_loop<B: CanBus, F: FnOnce() -> Result<B, BusError>>(
+    open_bus: F,
     model: Model,
     params: LoopParams,
     shared: Arc<Mutex<Shared>>,
@@ -497,6 +496,19 @@ fn control_loop<B: CanBus>(
         Err(e) => {
             let _ = ready.send(Err(format!("control runtime: {e}")));
             return;
+        }
+    };
+    // The bus is opened here, inside this thread's runtime: a SocketCAN socket registers with
+    // the reactor of the runtime it is created in, and this runtime drives it.
+    let mut bus = {
+        let _guard = rt.enter();
+        match open_bus() {
+            Ok(b) => b,
+            Err(e) => {
+                lock(&shared).fault = Some(e.to_string());
+                let _ = ready.send(Err(format!("opening the bus: {e}")));
+                return;
+            }
         }
     };
     if let Some(prio) = rt_priority {
