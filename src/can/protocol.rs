@@ -578,6 +578,39 @@ pub fn decode(frame: &Frame) -> Result<Message, DecodeError> {
     }
 }
 
+/// The message's fields as named signals in SI units — the names and scalings of
+/// `docs/pa10.dbc` — for comparing with a DBC tool's decoding.
+pub fn signals(m: &Message) -> serde_json::Value {
+    use serde_json::json;
+    match *m {
+        Message::Control {
+            request,
+            watchdog_ms,
+        } => json!({"request": request as u8, "watchdog_ms": watchdog_ms}),
+        Message::State {
+            state,
+            fault,
+            cycle,
+        } => json!({"state": state as u8, "fault": fault as u8, "cycle": cycle}),
+        Message::Sync { cycle } => json!({ "cycle": cycle }),
+        Message::Error { code, axis, detail } => {
+            json!({"code": code as u8, "axis": axis, "detail": detail})
+        }
+        Message::Command(c) => json!({
+            "brake": c.mode & mode::BRAKE, "servo": (c.mode & mode::SERVO) >> 1,
+            "torque_mode": (c.mode & mode::TORQUE) >> 2, "deadman": (c.mode & mode::DEADMAN) >> 3,
+            "cycle": c.cycle, "speed": c.speed_rad_s(), "torque": c.torque_nm(),
+        }),
+        Message::Feedback(f) => json!({
+            "angle": f.angle_rad(), "current": f.current_a(),
+            "brake_on": f.status & status::BRAKE_ON, "servo_on": (f.status & status::SERVO_ON) >> 1,
+            "fault": (f.status & status::FAULT) >> 2, "watchdog": (f.status & status::WATCHDOG) >> 3,
+            "limit": (f.status & status::LIMIT) >> 4, "deadman": (f.status & status::DEADMAN) >> 5,
+            "cycle": f.cycle,
+        }),
+    }
+}
+
 /// A frame in can-utils' candump log format: `(ts) iface ID#DATA` (ts in seconds).
 pub fn candump_line(ts_s: f64, iface: &str, f: &Frame) -> String {
     let data: String = f.data().iter().map(|b| format!("{b:02X}")).collect();

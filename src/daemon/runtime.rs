@@ -452,6 +452,20 @@ fn handshake<B: CanBus>(
     asm: &mut CycleAssembler,
     t0: Instant,
 ) -> Result<JointState, String> {
+    // First hear the controller (its STATE heartbeat): a request sent before it listens is
+    // lost, as on any CAN bus.
+    let end = Instant::now() + Duration::from_secs(3);
+    loop {
+        if Instant::now() >= end {
+            return Err("the controller is silent (no STATE heartbeat within 3 s)".into());
+        }
+        if let Ok(BusEvent::Frame(f)) =
+            rt.block_on(bus.recv(end.saturating_duration_since(Instant::now())))
+            && let Ok(Message::State { .. }) = protocol::decode(&f)
+        {
+            break;
+        }
+    }
     let wait = Duration::from_millis(500);
     request(rt, bus, Request::ReleaseBrakes, watchdog_ms, wait)?;
     request(rt, bus, Request::StartControl, watchdog_ms, wait)?;

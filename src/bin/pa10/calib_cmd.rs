@@ -30,6 +30,11 @@ pub enum SimCmd {
     Measure(MeasureArgs),
     /// Replay a candump log onto a CAN interface with its original timing.
     Replay(ReplayArgs),
+    /// Decode a candump log with the codec: one JSON list of {"id", "signals"} (DBC names, SI).
+    Decode {
+        /// The candump log.
+        file: PathBuf,
+    },
 }
 
 /// Running the simulated controller.
@@ -91,6 +96,7 @@ pub fn sim(a: &SimArgs) -> Result<()> {
     match &a.cmd {
         Some(SimCmd::Measure(m)) => measure(m),
         Some(SimCmd::Replay(r)) => replay(r),
+        Some(SimCmd::Decode { file }) => decode_log(file),
         None => run_sim(&a.run),
     }
 }
@@ -206,6 +212,18 @@ fn axis_value(spec: &str, flag: &str) -> Result<(usize, f64)> {
             anyhow::bail!("{flag} takes AXIS=VALUE with AXIS 1…6 and a finite value, got `{spec}`")
         }
     }
+}
+
+fn decode_log(file: &Path) -> Result<()> {
+    let entries = pa10::can::candump::read_log(file).map_err(anyhow::Error::msg)?;
+    let mut out = Vec::with_capacity(entries.len());
+    for (k, (_, _, f)) in entries.iter().enumerate() {
+        let m = pa10::can::protocol::decode(f)
+            .with_context(|| format!("{}: frame {}", file.display(), k + 1))?;
+        out.push(serde_json::json!({"id": f.id(), "signals": pa10::can::protocol::signals(&m)}));
+    }
+    println!("{}", serde_json::Value::Array(out));
+    Ok(())
 }
 
 fn replay(a: &ReplayArgs) -> Result<()> {
