@@ -38,6 +38,7 @@ dpkg -x "$deb" "$work/k"
 kver=${kpkg#linux-image-}
 mods="$work/k/lib/modules/$kver/kernel"
 
+target=${CARGO_TARGET_DIR:-$root/target}
 echo "vcan: building release binaries"
 (cd "$root" && cargo build --release --quiet --bin pa10 --bin pa10d)
 
@@ -49,7 +50,7 @@ for m in net/can/can.ko net/can/can-raw.ko drivers/net/can/dev/can-dev.ko driver
 done
 ipbin=$(command -v ip)
 cp "$ipbin" "$ird/sbin/ip"
-cp "$root/target/release/pa10" "$root/target/release/pa10d" "$(command -v candump)" "$ird/bin/"
+cp "$target/release/pa10" "$target/release/pa10d" "$(command -v candump)" "$ird/bin/"
 for f in "$ird/sbin/ip" "$ird/bin/pa10" "$ird/bin/pa10d" "$ird/bin/candump"; do
     for lib in $(ldd "$f" | grep -o '/[^ ]*'); do
         mkdir -p "$ird$(dirname "$lib")"
@@ -111,7 +112,7 @@ fail() {
 grep -q VCAN-UP "$work/console.txt" || fail "vcan0 did not come up"
 sed -n '/^CAPTURE-BEGIN$/,/^CAPTURE-END$/p' "$work/console.txt" | grep '^(' > "$work/cap.log" || true
 [ -s "$work/cap.log" ] || fail "no traffic captured"
-"$root/target/release/pa10" sim decode "$work/cap.log" > "$work/expected.json" || fail "the codec cannot decode the capture"
+"$target/release/pa10" sim decode "$work/cap.log" > "$work/expected.json" || fail "the codec cannot decode the capture"
 python3 "$root/tests/dbc/check_dbc.py" "$root/docs/pa10.dbc" "$work/cap.log" "$work/expected.json" || fail "cantools and the codec disagree on the capture"
 python3 - "$work/console.txt" <<'PY' || fail "scenario checks"
 import json, sys
