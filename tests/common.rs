@@ -65,3 +65,37 @@ pub fn random_q(r: &mut Pcg64, m: &Model) -> [f64; 6] {
 pub fn max_diff(a: &[f64; 6], b: &[f64; 6]) -> f64 {
     (0..6).map(|j| (a[j] - b[j]).abs()).fold(0.0, f64::max)
 }
+
+/// The seed paper's campaign on the hidden robot of `seed` (3 repeats), the model calibrated
+/// from it (one start) and the nominal model with only its base frame fitted (the "before").
+pub fn calibrated_and_nominal(seed: u64) -> (pa10::sim::experiment::Campaign, Model, Model) {
+    use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
+    use pa10::sim::experiment::{CampaignSpec, paper_campaign};
+    let camp = paper_campaign(&CampaignSpec {
+        seed,
+        repeats: 3,
+        ..Default::default()
+    })
+    .expect("campaign");
+    let opts = CalibOptions {
+        starts: 1,
+        ..Default::default()
+    };
+    let calibrated = calibrate(
+        &Model::nominal(),
+        &camp.cal,
+        Some(&camp.lines),
+        &opts,
+        &|_| {},
+    )
+    .expect("calibration")
+    .model;
+    let nominal = fit_base_only(
+        &Model::nominal(),
+        &camp.cal,
+        Some(&camp.lines),
+        &CalibOptions::default(),
+    )
+    .expect("base fit");
+    (camp, calibrated, nominal)
+}

@@ -2,13 +2,11 @@
 //! are encoded and decoded with the protocol codec but handed over directly, cycle by cycle,
 //! so the whole loop runs deterministically in a fraction of a second.
 
-use pa10::calib::fit::{CalibOptions, calibrate};
 use pa10::can::protocol::{self, Command, Message, Request, status};
 use pa10::daemon::config::TorqueSource;
 use pa10::daemon::control::{Activity, Controller, Fault, JointState, LoopParams};
 use pa10::daemon::motion::Move;
 use pa10::model::{Frame, Model, frame_from_pose};
-use pa10::sim::experiment::{CampaignSpec, paper_campaign};
 use pa10::sim::servo::{SIM_TORQUE_CONSTANTS, ServoConfig, ServoSim};
 use pa10::sim::{SimNoise, TrueRobot};
 
@@ -167,35 +165,10 @@ fn mean_error_mm(model: &Model, truth: &TrueRobot, load_n: f64) -> f64 {
 /// misses by millimetres.
 #[test]
 fn calibrated_compensation_lands_near_the_resolver_floor_under_load() {
-    let spec = CampaignSpec {
-        seed: 3,
-        repeats: 3,
-        ..Default::default()
-    };
-    let camp = paper_campaign(&spec).unwrap();
-    let calibrated = calibrate(
-        &Model::nominal(),
-        &camp.cal,
-        Some(&camp.lines),
-        &CalibOptions {
-            starts: 1,
-            ..Default::default()
-        },
-        &|_| {},
-    )
-    .unwrap()
-    .model;
-    // the nominal model placed as well as it can be (base frame fitted, the "before")
-    let nominal = pa10::calib::fit::fit_base_only(
-        &Model::nominal(),
-        &camp.cal,
-        Some(&camp.lines),
-        &CalibOptions::default(),
-    )
-    .unwrap();
+    let seed = 3;
+    let (camp, calibrated, nominal) = crate::common::calibrated_and_nominal(seed);
     // the simulator's truth is the campaign's (same seed, same tool), with its own noise
-    let truth =
-        TrueRobot::draw(spec.seed, &Model::nominal(), &tool(), SimNoise::default()).unwrap();
+    let truth = TrueRobot::draw(seed, &Model::nominal(), &tool(), SimNoise::default()).unwrap();
     assert_eq!(truth.model, camp.truth.model);
     let mut report = Vec::new();
     for load in [0.0, 22.0, 44.0, 90.0] {

@@ -5,12 +5,10 @@
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
 use pa10::daemon::api::handle;
 use pa10::daemon::config::Config;
 use pa10::daemon::runtime::Daemon;
 use pa10::model::{Frame, Model, pose_parts};
-use pa10::sim::experiment::{CampaignSpec, paper_campaign};
 use serde_json::{Value, json};
 
 const SEED: u64 = 3;
@@ -117,31 +115,7 @@ fn drive(model: &Model, load_n: f64) -> f64 {
 #[test]
 fn move_pose_through_the_daemon_lands_near_the_floor_where_the_nominal_model_misses() {
     let _serial = serial();
-    let camp = paper_campaign(&CampaignSpec {
-        seed: SEED,
-        repeats: 3,
-        ..Default::default()
-    })
-    .unwrap();
-    let calibrated = calibrate(
-        &Model::nominal(),
-        &camp.cal,
-        Some(&camp.lines),
-        &CalibOptions {
-            starts: 1,
-            ..Default::default()
-        },
-        &|_| {},
-    )
-    .unwrap()
-    .model;
-    let nominal = fit_base_only(
-        &Model::nominal(),
-        &camp.cal,
-        Some(&camp.lines),
-        &CalibOptions::default(),
-    )
-    .unwrap();
+    let (_, calibrated, nominal) = crate::common::calibrated_and_nominal(SEED);
     let (cal0, cal90, nom90) = (
         drive(&calibrated, 0.0),
         drive(&calibrated, 90.0),
