@@ -25,6 +25,7 @@ pub mod accuracy;
 pub mod calib;
 pub mod can;
 pub mod daemon;
+pub mod discover;
 pub mod model;
 pub mod plot;
 pub mod sim;

@@ -89,7 +89,7 @@ pub fn scatter_heat(
 }
 
 /// Points of several labelled series on one chart (`x`, `y` in the given units), each
-/// series in its own colour with a legend.
+/// series in its own colour with a legend. The y range always includes 0.
 pub fn series(
     path: &Path,
     title: &str,
@@ -98,12 +98,14 @@ pub fn series(
     data: &[(String, Vec<(f64, f64)>)],
 ) -> Result<(), PlotError> {
     let pts = data.iter().flat_map(|(_, v)| v.iter());
-    let (mut x0, mut x1, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64, 0.0f64);
     for &(x, y) in pts {
         x0 = x0.min(x);
         x1 = x1.max(x);
+        y0 = y0.min(y);
         y1 = y1.max(y);
     }
+    let pad = (0.05 * (x1 - x0)).max(1e-9);
     if !x0.is_finite() {
         return Err(err(path, "no points to plot"));
     }
@@ -114,7 +116,7 @@ pub fn series(
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(60)
-        .build_cartesian_2d((x0 - 1.0)..(x1 + 1.0), 0.0..(y1 * 1.1).max(1e-9))
+        .build_cartesian_2d((x0 - pad)..(x1 + pad), (y0 * 1.1)..(y1 * 1.1).max(1e-9))
         .map_err(|e| err(path, e))?;
     chart
         .configure_mesh()

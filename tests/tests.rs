@@ -8,6 +8,7 @@ mod common;
 mod control;
 mod daemon;
 mod dbc;
+mod discover;
 mod model;
 mod model_file;
 mod properties;

@@ -36,6 +36,12 @@ pub struct Row {
     pub effort: Effort,
     /// Measured target pose in the instrument frame.
     pub pose: Frame,
+    /// Direction each joint last moved in before this measurement (−1, 0, +1; 0 when
+    /// unknown): columns `dir1..dir6`, or derived from a previous configuration
+    /// `prev_q1..prev_q6` (rad). Selects the side of any backlash.
+    pub direction: [i8; 6],
+    /// Temperature of the arm, °C (column `temp_c`), when recorded.
+    pub temperature_c: Option<f64>,
     /// 1-based line number in its file (0 for rows made in memory).
     pub line: usize,
 }
@@ -185,6 +191,23 @@ impl Dataset {
             }
         }
         let idx = |name: &str| find(name).unwrap_or(usize::MAX);
+        let has_dir = (1..=6).all(|j| find(&format!("dir{j}")).is_some());
+        let has_prev = (1..=6).all(|j| find(&format!("prev_q{j}")).is_some());
+        if !has_dir && (1..=6).any(|j| find(&format!("dir{j}")).is_some()) {
+            return Err(bad(
+                1,
+                None,
+                "approach directions need all of `dir1..dir6`".into(),
+            ));
+        }
+        if !has_prev && (1..=6).any(|j| find(&format!("prev_q{j}")).is_some()) {
+            return Err(bad(
+                1,
+                None,
+                "previous configurations need all of `prev_q1..prev_q6` (rad)".into(),
+            ));
+        }
+        let has_temp = find("temp_c").is_some();
         let mut rows = Vec::new();
         for rec in rdr.records() {
             let rec = rec.map_err(|e| {
@@ -258,12 +281,54 @@ impl Dataset {
                     format!("qw,qx,qy,qz must be a unit quaternion; its norm is {norm}"),
                 ));
             }
+            let mut direction = [0i8; 6];
+            if has_dir {
+                for (j, d) in direction.iter_mut().enumerate() {
+                    let name = format!("dir{}", j + 1);
+                    let v = num(&name, "", 1.0)?;
+                    if v != v.round() {
+                        return Err(bad(
+                            line,
+                            Some(&name),
+                            format!("a direction is -1, 0 or 1, got {v}"),
+                        ));
+                    }
+                    *d = v as i8;
+                }
+            } else if has_prev {
+                for (j, d) in direction.iter_mut().enumerate() {
+                    let prev = num(&format!("prev_q{}", j + 1), "rad", MAX_ANGLE)?;
+                    let step = q[j] - prev;
+                    *d = if step > 1e-9 {
+                        1
+                    } else if step < -1e-9 {
+                        -1
+                    } else {
+                        0
+                    };
+                }
+            }
+            let temperature_c = if has_temp {
+                let t = num("temp_c", "°C", 1e3)?;
+                if !(-50.0..=150.0).contains(&t) {
+                    return Err(bad(
+                        line,
+                        Some("temp_c"),
+                        format!("{t} °C is outside -50…150 °C"),
+                    ));
+                }
+                Some(t)
+            } else {
+                None
+            };
             rows.push(Row {
                 config_id,
                 load_n,
                 q,
                 effort,
                 pose: frame_from_pose([p[0], p[1], p[2]], [p[3], p[4], p[5], p[6]]),
+                direction,
+                temperature_c,
                 line,
             });
         }
@@ -280,8 +345,16 @@ impl Dataset {
             Some(Effort::Current(_))
         );
         let p = if currents { "i" } else { "tau" };
+        let dirs = self.rows.iter().any(|r| r.direction != [0; 6]);
+        let temps = !self.rows.is_empty() && self.rows.iter().all(|r| r.temperature_c.is_some());
         let mut s = format!(
-            "config_id,load_n,q1,q2,q3,q4,q5,q6,{p}1,{p}2,{p}3,{p}4,{p}5,{p}6,x,y,z,qw,qx,qy,qz\n"
+            "config_id,load_n,q1,q2,q3,q4,q5,q6,{p}1,{p}2,{p}3,{p}4,{p}5,{p}6,x,y,z,qw,qx,qy,qz{}{}\n",
+            if dirs {
+                ",dir1,dir2,dir3,dir4,dir5,dir6"
+            } else {
+                ""
+            },
+            if temps { ",temp_c" } else { "" },
         );
         for r in &self.rows {
             let e = match r.effort {
@@ -298,6 +371,14 @@ impl Dataset {
             s.push_str(&r.config_id);
             s.push(',');
             s.push_str(&nums.join(","));
+            if dirs {
+                for d in r.direction {
+                    s.push_str(&format!(",{d}"));
+                }
+            }
+            if let (true, Some(t)) = (temps, r.temperature_c) {
+                s.push_str(&format!(",{t:?}"));
+            }
             s.push('\n');
         }
         s

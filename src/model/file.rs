@@ -6,7 +6,10 @@
 
 use serde::{Deserialize, Serialize};
 
+use std::collections::BTreeMap;
+
 use super::compliance::Stiffness;
+use super::joint_error::JointError;
 use super::params::{Departure, DhRow};
 use super::robot::{Body, JointLimits};
 
@@ -66,4 +69,36 @@ pub struct ModelData {
     pub bodies: Vec<Body>,
     /// Joint position and speed limits.
     pub joint_limits: JointLimits,
+    /// Transmission error, eccentricity and backlash per joint (`null`: none); added by
+    /// `pa10 discover`, compensated by `pa10d`.
+    #[serde(default, skip_serializing_if = "all_none")]
+    pub joint_errors: [Option<JointError>; 6],
+    /// Effects `pa10 discover` found, as a record (the run-time ones are also folded into
+    /// the fields above; the others, e.g. thermal expansion, are not compensated at run time).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub discovered: Vec<EffectRecord>,
+}
+
+fn all_none(v: &[Option<JointError>; 6]) -> bool {
+    v.iter().all(Option::is_none)
+}
+
+/// One effect found by `pa10 discover`, as written into the extended model file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EffectRecord {
+    /// The effect's machine name, e.g. `transmission_error`.
+    pub name: String,
+    /// Joint or link (DH row 1…6) it acts on, when it has one.
+    #[serde(default)]
+    pub joint: Option<usize>,
+    /// Estimated parameters by name (units in the name's documentation, SI).
+    #[serde(default)]
+    pub params: BTreeMap<String, f64>,
+    /// Standard errors of the parameters, same units.
+    #[serde(default)]
+    pub stderr: BTreeMap<String, f64>,
+    /// Whether `pa10d` compensates it at run time.
+    #[serde(default)]
+    pub compensated: bool,
 }

@@ -17,14 +17,16 @@
 mod compliance;
 mod file;
 mod ik;
+mod joint_error;
 mod kinematics;
 pub mod params;
 pub(crate) mod robot;
 mod statics;
 
 pub use compliance::Stiffness;
-pub use file::{ModelData, PoseData};
+pub use file::{EffectRecord, ModelData, PoseData};
 pub use ik::{IkError, IkSolutions, MAX_SOLUTIONS};
+pub use joint_error::{DEFAULT_GEAR_RATIO, JointError};
 pub use kinematics::{
     Frame, IdentJacobian, Jacobian, frame_from_pose, pose_error, pose_parts, rotation_log,
 };

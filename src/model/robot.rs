@@ -460,6 +460,12 @@ fn validate(d: &ModelData) -> Result<(), ModelError> {
             }
         }
     }
+    for (j, e) in d.joint_errors.iter().enumerate() {
+        if let Some(e) = e {
+            e.validate(&format!("joint_errors[{j}]"))
+                .map_err(|(key, reason)| invalid(key, reason))?;
+        }
+    }
     frame_from_data("tool", &d.tool)?;
     frame_from_data("base_from_instrument", &d.base_from_instrument)?;
     for (i, g) in d.gravity.iter().enumerate() {

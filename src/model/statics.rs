@@ -98,11 +98,28 @@ impl Model {
         d
     }
 
-    /// Link angles from resolver (motor-side) angles under known torques: `q − δ(τ)`.
+    /// Link angles from resolver (motor-side) angles under known torques:
+    /// `q − δ(τ) − e(q)`, with `e` the joint errors (periodic part; backlash centred).
     #[inline]
     pub fn link_from_motor(&self, q_motor: &[f64; 6], tau: &[f64; 6]) -> [f64; 6] {
+        self.link_from_motor_dir(q_motor, tau, &[0.0; 6])
+    }
+
+    /// [`Model::link_from_motor`] after an approach in direction `dir` (−1, 0, +1 per
+    /// joint), which selects the side of each joint's backlash.
+    #[inline]
+    pub fn link_from_motor_dir(
+        &self,
+        q_motor: &[f64; 6],
+        tau: &[f64; 6],
+        dir: &[f64; 6],
+    ) -> [f64; 6] {
         let d = self.deflections(tau);
-        std::array::from_fn(|j| q_motor[j] - d[j])
+        let e = &self.data().joint_errors;
+        std::array::from_fn(|j| {
+            let off = e[j].map_or(0.0, |e| e.offset(q_motor[j], dir[j]));
+            q_motor[j] - d[j] - off
+        })
     }
 
     /// **The compensation step**: motor-side targets that put the *link* at `q_link`
@@ -120,10 +137,41 @@ impl Model {
     /// ```
     #[inline]
     pub fn compensate(&self, q_link: &[f64; 6], tau: &[f64; 6]) -> Result<[f64; 6], ModelError> {
+        self.compensate_dir(q_link, tau, &[0.0; 6])
+    }
+
+    /// The compensation step including the joint errors: solves
+    /// `q_motor = q_link + δ(τ) + e(q_motor) + (b/2)·dir` (the periodic error `e` by
+    /// fixed-point iteration, contracting because |e′| ≪ 1), with `dir` the direction each
+    /// joint is moving in (−1, 0, +1), so that backlash is taken up on the right side.
+    #[inline]
+    pub fn compensate_dir(
+        &self,
+        q_link: &[f64; 6],
+        tau: &[f64; 6],
+        dir: &[f64; 6],
+    ) -> Result<[f64; 6], ModelError> {
         check_finite("q_link", q_link)?;
         check_finite("tau", tau)?;
+        check_finite("dir", dir)?;
         let d = self.deflections(tau);
-        Ok(std::array::from_fn(|j| q_link[j] + d[j]))
+        let mut out: [f64; 6] = std::array::from_fn(|j| q_link[j] + d[j]);
+        for (j, e) in self.data().joint_errors.iter().enumerate() {
+            if let Some(e) = e {
+                let base = out[j];
+                let mut qm = base;
+                for _ in 0..12 {
+                    let next = base + e.offset(qm, dir[j]);
+                    let step = (next - qm).abs();
+                    qm = next;
+                    if step < 1e-15 {
+                        break;
+                    }
+                }
+                out[j] = qm;
+            }
+        }
+        Ok(out)
     }
 
     /// The compensation step with torques from the model's gravity and `load`:
@@ -155,11 +203,22 @@ impl Model {
         q_motor: &[f64; 6],
         load: &ExternalLoad,
     ) -> Result<([f64; 6], [f64; 6]), ModelError> {
+        self.link_from_motor_static_dir(q_motor, load, &[0.0; 6])
+    }
+
+    /// [`Model::link_from_motor_static`] after an approach in direction `dir` (−1, 0, +1
+    /// per joint; selects the backlash side).
+    pub fn link_from_motor_static_dir(
+        &self,
+        q_motor: &[f64; 6],
+        load: &ExternalLoad,
+        dir: &[f64; 6],
+    ) -> Result<([f64; 6], [f64; 6]), ModelError> {
         check_finite("q_motor", q_motor)?;
         let mut q = *q_motor;
         for _ in 0..MAX_FIXED_POINT {
             let tau = self.static_torques(&q, load);
-            let next = self.link_from_motor(q_motor, &tau);
+            let next = self.link_from_motor_dir(q_motor, &tau, dir);
             let step = (0..6).map(|j| (next[j] - q[j]).abs()).fold(0.0, f64::max);
             q = next;
             if step < 1e-13 {

@@ -239,3 +239,255 @@ pub fn paper_campaign(spec: &CampaignSpec) -> Result<Campaign, CampaignError> {
         truth,
     })
 }
+
+/// A campaign designed for `pa10 discover`: random joint configurations spread over wide
+/// joint ranges, every one measured at every load, from both approach directions, and in
+/// a cold and a warm pass — so that load-, direction- and temperature-dependent effects
+/// each show as contrasts *within* a configuration, where the configuration's resolver
+/// error cancels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiscoverySpec {
+    /// Seed of the truth, the configurations and every measurement.
+    pub seed: u64,
+    /// Seed of the configurations and measurements alone (same truth, other poses: a
+    /// holdout set).
+    pub pose_seed: u64,
+    /// Number of configurations.
+    pub configs: usize,
+    /// Loads, N.
+    pub loads: Vec<f64>,
+    /// Repeats per (configuration, load, direction, temperature).
+    pub repeats: usize,
+    /// Approach every configuration from both directions (−1 and +1 on every joint).
+    pub both_directions: bool,
+    /// Arm temperatures of the passes, °C (empty: one pass, no temperature column).
+    pub temperatures_c: Vec<f64>,
+    /// Truth slots to set (the hidden effects), with values in the slot's unit.
+    pub hidden: Vec<(crate::discover::effects::Slot, f64)>,
+    /// Flange → target (the tooling ball frame), known to the user.
+    pub tool: Frame,
+    /// Sensor noise.
+    pub noise: SimNoise,
+}
+
+impl Default for DiscoverySpec {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            pose_seed: 0,
+            configs: 60,
+            loads: vec![0.0, 45.0, 90.0],
+            repeats: 2,
+            both_directions: true,
+            temperatures_c: vec![20.0, 35.0],
+            hidden: Vec::new(),
+            tool: CampaignSpec::default().tool,
+            noise: SimNoise::default(),
+        }
+    }
+}
+
+/// Joint ranges of the discovery configurations, rad: wide, clear of the limits and of
+/// the wrist singularity (q5 = 0).
+const DISCOVERY_RANGES: [(f64, f64); 6] = [
+    (-1.2, 1.2),
+    (-0.5, 1.1),
+    (0.4, 2.3),
+    (-1.5, 1.5),
+    (0.35, 1.8),
+    (-1.5, 1.5),
+];
+
+/// A discovery campaign and its hidden truth.
+#[derive(Debug, Clone)]
+pub struct DiscoveryCampaign {
+    /// The measurements (with sidecar: tool and noise).
+    pub data: Dataset,
+    /// The truth, with the hidden effects.
+    pub truth: TrueRobot,
+}
+
+/// Generates the campaign of `spec`: the truth is [`TrueRobot::draw`]`(seed)` with the
+/// hidden slots set on top.
+pub fn discovery_campaign(spec: &DiscoverySpec) -> Result<DiscoveryCampaign, CampaignError> {
+    use crate::discover::effects::State;
+    if spec.configs < 8 || spec.configs > 1000 || spec.repeats == 0 || spec.loads.is_empty() {
+        return Err(CampaignError::Invalid(
+            "discovery campaign: needs 8…1000 configurations, ≥ 1 repeat and ≥ 1 load".into(),
+        ));
+    }
+    if spec
+        .loads
+        .iter()
+        .any(|l| !(l.is_finite() && *l >= 0.0 && *l <= 500.0))
+    {
+        return Err(CampaignError::Invalid(
+            "discovery campaign: loads must be within 0…500 N".into(),
+        ));
+    }
+    let mut truth = TrueRobot::draw(spec.seed, &Model::nominal(), &spec.tool, spec.noise)?;
+    if !spec.hidden.is_empty() {
+        let mut st = State::from_model(&truth.model, crate::model::DEFAULT_GEAR_RATIO);
+        for &(slot, v) in &spec.hidden {
+            st.set(slot, v);
+        }
+        let mut d = st.to_model()?.data().clone();
+        d.robot = truth.model.data().robot.clone();
+        truth.model = Model::new(d)?;
+        truth.extras.thermal = st.thermal;
+        truth.extras.bending = st.bending;
+        truth.extras.t_ref_c = 20.0;
+    }
+    let mut rng = Pcg64::seed_from_u64(
+        spec.seed ^ 0xd15c_0e7e ^ spec.pose_seed.wrapping_mul(0x9e37_79b9_7f4a_7c15),
+    );
+    let limits = *truth.model.limits();
+    let mut data = Dataset::default();
+    let dirs: &[i8] = if spec.both_directions { &[1, -1] } else { &[0] };
+    let temps: Vec<Option<f64>> = if spec.temperatures_c.is_empty() {
+        vec![None]
+    } else {
+        spec.temperatures_c.iter().map(|t| Some(*t)).collect()
+    };
+    let configs: Vec<[f64; 6]> = (0..spec.configs)
+        .map(|_| {
+            std::array::from_fn(|j| {
+                let (lo, hi) = DISCOVERY_RANGES[j];
+                rng.random_range(lo.max(limits.lower[j])..hi.min(limits.upper[j]))
+            })
+        })
+        .collect();
+    for &temperature_c in &temps {
+        for (c, q) in configs.iter().enumerate() {
+            for &load in &spec.loads {
+                for &d in dirs {
+                    for _ in 0..spec.repeats {
+                        let cond = super::Conditions {
+                            direction: [d; 6],
+                            temperature_c,
+                        };
+                        data.rows.push(truth.measure_with(
+                            &format!("c{c:03}"),
+                            q,
+                            load,
+                            cond,
+                            &mut rng,
+                        )?);
+                    }
+                }
+            }
+        }
+    }
+    data.meta = Some(Meta {
+        instrument: Some(format!(
+            "simulated CMM (discovery campaign, seed {})",
+            spec.seed
+        )),
+        tool: Some(PoseData {
+            translation: crate::model::pose_parts(&spec.tool).0,
+            quaternion: crate::model::pose_parts(&spec.tool).1,
+        }),
+        noise: Some(Noise {
+            position_m: spec.noise.position_m,
+            resolver_arcmin: spec.noise.resolver_rad / crate::accuracy::ARCMIN,
+        }),
+        inner_configs: None,
+    });
+    Ok(DiscoveryCampaign { data, truth })
+}
+
+/// A hidden-effect scenario for `pa10 discover`: what the truth has that the starting
+/// model lacks, and what discovery should name.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scenario {
+    /// Short machine name (`pa10 sim discovery --scenario NAME`).
+    pub name: &'static str,
+    /// What is hidden, in words.
+    pub description: &'static str,
+    /// Whether the starting model is the paper's linear-only comparison model.
+    pub linear_only: bool,
+    /// Truth slots set on top of the drawn robot.
+    pub hidden: Vec<(crate::discover::effects::Slot, f64)>,
+    /// Labels discovery should name, in order of size.
+    pub expect: Vec<&'static str>,
+}
+
+/// The scenarios the discovery tests and study use.
+pub fn scenarios() -> Vec<Scenario> {
+    use crate::discover::effects::Slot;
+    vec![
+        Scenario {
+            name: "none",
+            description: "nothing hidden: the truth is the paper's model",
+            linear_only: false,
+            hidden: vec![],
+            expect: vec![],
+        },
+        Scenario {
+            name: "cubic-j2",
+            description: "cubic stiffness on J2 (the paper's 3.35e7 N·m/rad³ ±20 %), starting from a linear-only model",
+            linear_only: true,
+            hidden: vec![(Slot::Kcub(2), 0.0), (Slot::Kcub(4), 0.0)],
+            expect: vec!["joint_compliance_cubic[J2]"],
+        },
+        Scenario {
+            name: "compliance-j4",
+            description: "a 4000 N·m/rad spring on J4, which the paper holds rigid",
+            linear_only: false,
+            hidden: vec![(Slot::Compliance(3), 1.0 / 4.0e3)],
+            expect: vec!["joint_compliance_linear[J4]"],
+        },
+        Scenario {
+            name: "transmission-j3",
+            description: "transmission error on J3: 0.5 mrad once per wave-generator revolution (1:50) and 0.3 mrad twice per output revolution",
+            linear_only: false,
+            hidden: vec![
+                (Slot::JointErr(2, 4), 4e-4),
+                (Slot::JointErr(2, 5), -3e-4),
+                (Slot::JointErr(2, 2), 3e-4),
+            ],
+            expect: vec!["transmission_error[J3]"],
+        },
+        Scenario {
+            name: "backlash-j1",
+            description: "0.4 mrad of backlash on J1",
+            linear_only: false,
+            hidden: vec![(Slot::JointErr(0, 10), 4e-4)],
+            expect: vec!["backlash[J1]"],
+        },
+        Scenario {
+            name: "thermal-forearm",
+            description: "thermal expansion of the forearm (aluminium, 23e-6 /K) over a 15 K warm-up",
+            linear_only: false,
+            hidden: vec![(Slot::Thermal(3), 2.3e-5)],
+            expect: vec!["thermal_expansion[link 4]"],
+        },
+        Scenario {
+            name: "j4-and-backlash",
+            description: "two at once: the J4 spring (mm) and J1 backlash (0.1 mm)",
+            linear_only: false,
+            hidden: vec![
+                (Slot::Compliance(3), 1.0 / 4.0e3),
+                (Slot::JointErr(0, 10), 4e-4),
+            ],
+            expect: vec!["joint_compliance_linear[J4]", "backlash[J1]"],
+        },
+    ]
+}
+
+/// The starting model of the discovery scenarios: nominal geometry with the paper's
+/// stiffness on J2, J3, J5 (cubic terms zero when `linear_only`).
+pub fn paper_model(linear_only: bool) -> Result<Model, ModelError> {
+    let mut d = Model::nominal().data().clone();
+    for (k, &j) in crate::model::STIFF_JOINTS.iter().enumerate() {
+        d.stiffness[j] = Some(crate::model::Stiffness {
+            klin: super::PAPER_STIFFNESS[k].0,
+            kcub: if linear_only {
+                0.0
+            } else {
+                super::PAPER_STIFFNESS[k].1
+            },
+        });
+    }
+    Model::new(d)
+}

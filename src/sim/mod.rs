@@ -57,11 +57,42 @@ impl Default for SimNoise {
 /// 2π), phase (rad).
 type Harmonic = (f64, f64, f64);
 
+/// Effects of the truth that a model file cannot hold (joint springs and joint errors go
+/// in [`TrueRobot::model`]): thermal growth and bending of links, evaluated by the same
+/// forward model as discovery's candidates ([`crate::discover::effects::predict`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TruthExtras {
+    /// Thermal expansion coefficient per DH row, 1/K.
+    pub thermal: [f64; 6],
+    /// Bending compliance per DH row, rad/(N·m).
+    pub bending: [f64; 6],
+    /// Temperature at which the lengths are the model's, °C.
+    pub t_ref_c: f64,
+}
+
+impl TruthExtras {
+    fn active(&self) -> bool {
+        self.thermal.iter().chain(&self.bending).any(|v| *v != 0.0)
+    }
+}
+
+/// The conditions of one measurement beyond configuration and load.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Conditions {
+    /// Direction each joint approached the configuration from (−1, 0, +1).
+    pub direction: [i8; 6],
+    /// Arm temperature, °C (`None`: the reference temperature, not recorded).
+    pub temperature_c: Option<f64>,
+}
+
 /// A hidden true robot.
 #[derive(Debug, Clone)]
 pub struct TrueRobot {
-    /// True geometry, springs, masses (tooling included), tool and instrument placement.
+    /// True geometry, springs, joint errors, masses (tooling included), tool and instrument
+    /// placement.
     pub model: Model,
+    /// Thermal growth and bending of the truth (zero unless a test hides them).
+    pub extras: TruthExtras,
     /// Sensor noise levels.
     pub noise: SimNoise,
     resolver: [[Harmonic; 3]; 6],
@@ -136,6 +167,7 @@ impl TrueRobot {
         let resolver = resolver_harmonics(&mut rng, &noise);
         Ok(Self {
             model,
+            extras: TruthExtras::default(),
             noise,
             resolver,
         })
@@ -144,8 +176,13 @@ impl TrueRobot {
     /// What the instrument reports for the robot at link angles `q_link`: the true target pose
     /// in the instrument frame, with the instrument's position and orientation noise.
     pub fn observe(&self, q_link: &[f64; 6], rng: &mut Pcg64) -> Frame {
+        self.observe_pose(&self.model.fk(q_link), rng)
+    }
+
+    /// What the instrument reports for a true target pose `pose` (robot base frame).
+    pub fn observe_pose(&self, pose: &Frame, rng: &mut Pcg64) -> Frame {
         let m = &self.model;
-        let truth = m.base_from_instrument().inverse() * m.fk(q_link);
+        let truth = m.base_from_instrument().inverse() * pose;
         let s3 = 1.0 / 3f64.sqrt();
         let dp = Vector3::new(gauss(rng), gauss(rng), gauss(rng)) * (self.noise.position_m * s3);
         let dr =
@@ -169,6 +206,7 @@ impl TrueRobot {
         let resolver = resolver_harmonics(&mut rng, &noise);
         Self {
             model,
+            extras: TruthExtras::default(),
             noise,
             resolver,
         }
@@ -192,6 +230,19 @@ impl TrueRobot {
         load_n: f64,
         rng: &mut Pcg64,
     ) -> Result<Row, ModelError> {
+        self.measure_with(config_id, q_cmd, load_n, Conditions::default(), rng)
+    }
+
+    /// [`TrueRobot::measure`] after an approach in `cond.direction` at `cond.temperature_c`;
+    /// the row records both.
+    pub fn measure_with(
+        &self,
+        config_id: &str,
+        q_cmd: &[f64; 6],
+        load_n: f64,
+        cond: Conditions,
+        rng: &mut Pcg64,
+    ) -> Result<Row, ModelError> {
         let m = &self.model;
         // The servo settles where the resolver reads q_cmd (plus a little scatter): the true
         // motor angle is q_cmd − e(true angle).
@@ -202,18 +253,38 @@ impl TrueRobot {
             motor = std::array::from_fn(|j| reading[j] - self.resolver_error(j, motor[j]));
         }
         let load = ExternalLoad::hung(load_n, &m.gravity());
-        let (q_link, tau) = m.link_from_motor_static(&motor, &load)?;
+        let dir = cond.direction.map(f64::from);
+        let (q_link, tau) = m.link_from_motor_static_dir(&motor, &load, &dir)?;
         let tau_meas: [f64; 6] = std::array::from_fn(|j| {
             tau[j] * (1.0 + self.noise.torque_rel * gauss(rng))
                 + self.noise.torque_abs_nm * gauss(rng)
         });
-        let measured = self.observe(&q_link, rng);
+        let measured = if self.extras.active() {
+            let mut st = crate::discover::effects::State::from_model(m, 1.0);
+            st.thermal = self.extras.thermal;
+            st.bending = self.extras.bending;
+            let obs = crate::discover::effects::Obs {
+                q: motor,
+                tau,
+                load_n,
+                dir,
+                thermal: cond.temperature_c.map_or(0.0, |t| t - self.extras.t_ref_c),
+                meas: Frame::identity(),
+            };
+            let geom = st.geometry()?;
+            let pose = crate::discover::effects::predict(&st, &geom, &obs);
+            self.observe_pose(&pose, rng)
+        } else {
+            self.observe(&q_link, rng)
+        };
         Ok(Row {
             config_id: config_id.to_string(),
             load_n,
             q: reading,
             effort: Effort::Torque(tau_meas),
             pose: measured,
+            direction: cond.direction,
+            temperature_c: cond.temperature_c,
             line: 0,
         })
     }

@@ -1,0 +1,734 @@
+//! The library of candidate effects: what each one is called, what its parameters mean
+//! (with units), and how it changes the predicted pose.
+//!
+//! Every effect's parameters live in one flat [`State`] (zero means "absent"), addressed
+//! by [`Slot`]s, so that fitting a model with any set of effects is one least-squares
+//! problem over a list of slots. [`predict`] is the forward model:
+//!
+//! 1. joint side: `q_link = q_motor − δ(τ) − e(q_motor) − (b/2)·dir` — compliance (linear
+//!    `c·τ` or linear + cubic spring), transmission error, eccentricity, backlash
+//!    ([`JointError`], shared with the run-time [`Model`]);
+//! 2. the geometry (DH with departures, Hayati β) at those link angles;
+//! 3. small rigid changes inserted along the chain from the flange back to the base: tool
+//!    offset at the flange, thermal growth of a link along its axis, bending of a link about
+//!    its midpoint by `c·M⊥` (M⊥: the bending moment it carries), base-frame error.
+
+use nalgebra::{Rotation3, Translation3, Vector3, Vector6};
+
+use crate::model::params::{HAYATI_JOINT, IDX_D, IDX_THETA};
+use crate::model::{Frame, JointError, Model, ModelData, ModelError, Stiffness, pose_error};
+
+/// Links (DH rows, zero-based) whose length can grow with temperature: the shoulder column
+/// d1, upper arm a2, forearm d4 and wrist d6.
+pub const THERMAL_LINKS: [usize; 4] = [0, 1, 3, 5];
+/// Links (DH rows, zero-based) that can bend: the upper arm (row 2) and forearm (row 4).
+pub const BENDING_LINKS: [usize; 2] = [1, 3];
+/// Human names of the links by DH row.
+pub const LINK_NAMES: [&str; 6] = [
+    "shoulder column (d1)",
+    "upper arm (a2)",
+    "elbow (row 3)",
+    "forearm (d4)",
+    "wrist (row 5)",
+    "wrist flange (d6)",
+];
+
+/// The kinds of candidate effect.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Kind {
+    /// A linear spring on a joint the model holds rigid: `δ = c·τ`.
+    JointComplianceLinear,
+    /// A cubic term on a joint with a linear spring: `τ = Klin·δ + Kcub·δ³`.
+    JointComplianceCubic,
+    /// Harmonic-drive transmission error: first and second harmonics per output revolution
+    /// and per wave-generator revolution.
+    TransmissionError,
+    /// Lost motion depending on the approach direction.
+    Backlash,
+    /// A link's length changing with temperature (or by a single factor without one).
+    ThermalExpansion,
+    /// A link bending under the moment it carries.
+    LinkBending,
+    /// A once-per-revolution sinusoid in a joint's link angle.
+    EncoderEccentricity,
+    /// A mass at the tool that the load figures miss.
+    PayloadMassError,
+    /// A wrong flange → target translation.
+    ToolOffsetError,
+    /// A wrong instrument → base placement.
+    BaseFrameError,
+    /// A DH departure the model does not fit.
+    GeometricDeparture,
+}
+
+impl Kind {
+    /// Every kind, in library order.
+    pub const ALL: [Kind; 11] = [
+        Kind::JointComplianceLinear,
+        Kind::JointComplianceCubic,
+        Kind::TransmissionError,
+        Kind::Backlash,
+        Kind::ThermalExpansion,
+        Kind::LinkBending,
+        Kind::EncoderEccentricity,
+        Kind::PayloadMassError,
+        Kind::ToolOffsetError,
+        Kind::BaseFrameError,
+        Kind::GeometricDeparture,
+    ];
+
+    /// The stable machine name (used in JSON, model files and on the command line).
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::JointComplianceLinear => "joint_compliance_linear",
+            Kind::JointComplianceCubic => "joint_compliance_cubic",
+            Kind::TransmissionError => "transmission_error",
+            Kind::Backlash => "backlash",
+            Kind::ThermalExpansion => "thermal_expansion",
+            Kind::LinkBending => "link_bending",
+            Kind::EncoderEccentricity => "encoder_eccentricity",
+            Kind::PayloadMassError => "payload_mass_error",
+            Kind::ToolOffsetError => "tool_offset_error",
+            Kind::BaseFrameError => "base_frame_error",
+            Kind::GeometricDeparture => "geometric_departure",
+        }
+    }
+
+    /// The kind with machine name `name`.
+    pub fn from_name(name: &str) -> Option<Kind> {
+        Kind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// A one-line human description.
+    pub fn description(self) -> &'static str {
+        match self {
+            Kind::JointComplianceLinear => {
+                "linear joint spring: the link lags the motor by c·τ (c in rad/(N·m))"
+            }
+            Kind::JointComplianceCubic => {
+                "hardening joint spring: τ = Klin·δ + Kcub·δ³ (Kcub in N·m/rad³)"
+            }
+            Kind::TransmissionError => {
+                "harmonic-drive transmission error: sin/cos of q, 2q, N·q, 2N·q (rad), N the gear ratio"
+            }
+            Kind::Backlash => {
+                "lost motion b (rad): the link trails the motor by b/2 in the approach direction"
+            }
+            Kind::ThermalExpansion => {
+                "link length L·(1 + α·(T − T_ref)) with a temperature column (α in 1/K), else L·(1 + s)"
+            }
+            Kind::LinkBending => {
+                "link bending: rotation c·M⊥ (rad, c in rad/(N·m)) about the link's midpoint"
+            }
+            Kind::EncoderEccentricity => "encoder eccentricity: sin/cos of the link angle (rad)",
+            Kind::PayloadMassError => "an unaccounted mass at the tool (kg), loading the links",
+            Kind::ToolOffsetError => "flange → target translation error (m, flange frame)",
+            Kind::BaseFrameError => "instrument → base frame error (m, rad)",
+            Kind::GeometricDeparture => "a DH departure the model keeps fixed (m or rad)",
+        }
+    }
+}
+
+/// One candidate: a kind applied to a joint, a link or a DH parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Effect {
+    /// What it is.
+    pub kind: Kind,
+    /// Zero-based joint / DH row for per-joint and per-link kinds; for
+    /// [`Kind::GeometricDeparture`] the index 0…23 of the departure in the
+    /// [`ParamVector`](crate::model::ParamVector) layout; `None` for whole-arm kinds.
+    pub target: Option<usize>,
+}
+
+/// A parameter of an effect: name and unit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamSpec {
+    /// Name, e.g. `out1_sin`.
+    pub name: String,
+    /// SI unit.
+    pub unit: &'static str,
+}
+
+fn spec(name: &str, unit: &'static str) -> ParamSpec {
+    ParamSpec {
+        name: name.to_string(),
+        unit,
+    }
+}
+
+/// Names of the joint-error components addressed by [`Slot::JointErr`] 0…10.
+pub const JOINT_ERROR_PARAMS: [&str; 11] = [
+    "out1_sin",
+    "out1_cos",
+    "out2_sin",
+    "out2_cos",
+    "wave1_sin",
+    "wave1_cos",
+    "wave2_sin",
+    "wave2_cos",
+    "ecc_sin",
+    "ecc_cos",
+    "backlash",
+];
+
+impl Effect {
+    /// The joint or link this effect acts on, 1-based (for geometric departures, the joint
+    /// of the DH parameter).
+    pub fn joint(&self) -> Option<usize> {
+        match self.kind {
+            Kind::GeometricDeparture => self.target.map(|i| i % 6 + 1),
+            _ => self.target.map(|j| j + 1),
+        }
+    }
+
+    /// `name[J3]`-style label.
+    pub fn label(&self) -> String {
+        match (self.kind, self.target) {
+            (Kind::GeometricDeparture, Some(i)) => {
+                format!("{}[{}]", self.kind.name(), crate::model::param_names()[i])
+            }
+            (Kind::ThermalExpansion | Kind::LinkBending, Some(j)) => {
+                format!("{}[link {}]", self.kind.name(), j + 1)
+            }
+            (_, Some(j)) => format!("{}[J{}]", self.kind.name(), j + 1),
+            (_, None) => self.kind.name().to_string(),
+        }
+    }
+
+    /// The state slots holding its parameters, in [`Effect::params`] order.
+    pub fn slots(&self) -> Vec<Slot> {
+        let t = self.target.unwrap_or(0);
+        match self.kind {
+            Kind::JointComplianceLinear => vec![Slot::Compliance(t)],
+            Kind::JointComplianceCubic => vec![Slot::Kcub(t)],
+            Kind::TransmissionError => (0..8).map(|k| Slot::JointErr(t, k)).collect(),
+            Kind::EncoderEccentricity => vec![Slot::JointErr(t, 8), Slot::JointErr(t, 9)],
+            Kind::Backlash => vec![Slot::JointErr(t, 10)],
+            Kind::ThermalExpansion => vec![Slot::Thermal(t)],
+            Kind::LinkBending => vec![Slot::Bending(t)],
+            Kind::PayloadMassError => vec![Slot::Payload],
+            Kind::ToolOffsetError => (0..3).map(Slot::Tool).collect(),
+            Kind::BaseFrameError => (0..6).map(Slot::Base).collect(),
+            Kind::GeometricDeparture => vec![Slot::Dep(t)],
+        }
+    }
+
+    /// Its parameters, with units (`thermal_per_kelvin`: whether the data carry
+    /// temperatures).
+    pub fn params(&self, thermal_per_kelvin: bool) -> Vec<ParamSpec> {
+        match self.kind {
+            Kind::JointComplianceLinear => vec![spec("compliance", "rad/(N·m)")],
+            Kind::JointComplianceCubic => vec![spec("kcub", "N·m/rad³")],
+            Kind::TransmissionError => JOINT_ERROR_PARAMS[..8]
+                .iter()
+                .map(|n| spec(n, "rad"))
+                .collect(),
+            Kind::EncoderEccentricity => vec![spec("sin", "rad"), spec("cos", "rad")],
+            Kind::Backlash => vec![spec("backlash", "rad")],
+            Kind::ThermalExpansion if thermal_per_kelvin => vec![spec("alpha", "1/K")],
+            Kind::ThermalExpansion => vec![spec("factor", "1")],
+            Kind::LinkBending => vec![spec("compliance", "rad/(N·m)")],
+            Kind::PayloadMassError => vec![spec("mass", "kg")],
+            Kind::ToolOffsetError => vec![spec("x", "m"), spec("y", "m"), spec("z", "m")],
+            Kind::BaseFrameError => vec![
+                spec("x", "m"),
+                spec("y", "m"),
+                spec("z", "m"),
+                spec("rx", "rad"),
+                spec("ry", "rad"),
+                spec("rz", "rad"),
+            ],
+            Kind::GeometricDeparture => {
+                let i = self.target.unwrap_or(0);
+                vec![spec(
+                    crate::model::param_names()[i],
+                    crate::model::param_units()[i],
+                )]
+            }
+        }
+    }
+
+    /// Whether `pa10d` compensates it at run time once written into a model file.
+    pub fn run_time(&self) -> bool {
+        matches!(
+            self.kind,
+            Kind::JointComplianceLinear
+                | Kind::JointComplianceCubic
+                | Kind::TransmissionError
+                | Kind::Backlash
+                | Kind::EncoderEccentricity
+                | Kind::ToolOffsetError
+                | Kind::BaseFrameError
+                | Kind::GeometricDeparture
+        )
+    }
+}
+
+/// One scalar of a [`State`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Slot {
+    /// Geometric departure, index 0…23 in the `ParamVector` layout.
+    Dep(usize),
+    /// Linear compliance of joint j (zero-based), rad/(N·m).
+    Compliance(usize),
+    /// Cubic stiffness of joint j, N·m/rad³.
+    Kcub(usize),
+    /// Joint-error component k (see [`JOINT_ERROR_PARAMS`]) of joint j, rad.
+    JointErr(usize, usize),
+    /// Base-frame correction: translation x, y, z (m), rotation x, y, z (rad), applied on
+    /// the left of `base_from_instrument`.
+    Base(usize),
+    /// Thermal coefficient (1/K) or factor of DH row j.
+    Thermal(usize),
+    /// Bending compliance of DH row j, rad/(N·m).
+    Bending(usize),
+    /// Extra tool mass, kg.
+    Payload,
+    /// Tool offset component, m.
+    Tool(usize),
+}
+
+impl Slot {
+    /// Typical size of the parameter: the unit of the scaled fit and of finite differences.
+    pub fn scale(self) -> f64 {
+        match self {
+            Slot::Dep(_) => 1e-4,
+            Slot::Compliance(_) => 1e-5,
+            Slot::Kcub(_) => 1e7,
+            Slot::JointErr(..) => 1e-4,
+            Slot::Base(_) => 1e-4,
+            Slot::Thermal(_) => 1e-5,
+            Slot::Bending(_) => 1e-6,
+            Slot::Payload => 0.1,
+            Slot::Tool(_) => 1e-4,
+        }
+    }
+
+    /// Whether changing it changes the geometry model (DH frames or base frame).
+    pub fn geometric(self) -> bool {
+        matches!(self, Slot::Dep(_) | Slot::Base(_))
+    }
+}
+
+/// Every parameter of every effect, plus the model's geometry; zero means absent.
+#[derive(Debug, Clone, PartialEq)]
+pub struct State {
+    /// Geometry: DH, departures, tool, base frame, masses, limits (springs and joint
+    /// errors are held below instead).
+    pub geom: ModelData,
+    /// Linear compliance per joint, rad/(N·m) (0: rigid).
+    pub compliance: [f64; 6],
+    /// Cubic stiffness per joint, N·m/rad³.
+    pub kcub: [f64; 6],
+    /// Transmission error, eccentricity and backlash per joint.
+    pub joint_err: [JointError; 6],
+    /// Base-frame correction (see [`Slot::Base`]).
+    pub base: [f64; 6],
+    /// Thermal coefficient (1/K) or factor per DH row.
+    pub thermal: [f64; 6],
+    /// Bending compliance per DH row, rad/(N·m).
+    pub bending: [f64; 6],
+    /// Extra tool mass, kg.
+    pub payload_kg: f64,
+    /// Tool offset in the flange frame, m.
+    pub tool_offset: [f64; 3],
+}
+
+impl State {
+    /// The state of `model`: its geometry, springs and joint errors; every other effect
+    /// zero. `gear_ratio` is used for joints without joint errors.
+    pub fn from_model(model: &Model, gear_ratio: f64) -> Self {
+        let d = model.data();
+        let mut compliance = [0.0; 6];
+        let mut kcub = [0.0; 6];
+        for j in 0..6 {
+            if let Some(s) = d.stiffness[j] {
+                compliance[j] = 1.0 / s.klin;
+                kcub[j] = s.kcub;
+            }
+        }
+        let joint_err = std::array::from_fn(|j| {
+            d.joint_errors[j].unwrap_or(JointError {
+                gear_ratio,
+                ..Default::default()
+            })
+        });
+        let mut geom = d.clone();
+        geom.stiffness = [None; 6];
+        geom.joint_errors = [None; 6];
+        geom.discovered.clear();
+        Self {
+            geom,
+            compliance,
+            kcub,
+            joint_err,
+            base: [0.0; 6],
+            thermal: [0.0; 6],
+            bending: [0.0; 6],
+            payload_kg: 0.0,
+            tool_offset: [0.0; 3],
+        }
+    }
+
+    /// The value in `slot`.
+    pub fn get(&self, slot: Slot) -> f64 {
+        match slot {
+            Slot::Dep(i) => dep_ref(&self.geom, i),
+            Slot::Compliance(j) => self.compliance[j],
+            Slot::Kcub(j) => self.kcub[j],
+            Slot::JointErr(j, k) => *je_ref(&self.joint_err[j], k),
+            Slot::Base(k) => self.base[k],
+            Slot::Thermal(j) => self.thermal[j],
+            Slot::Bending(j) => self.bending[j],
+            Slot::Payload => self.payload_kg,
+            Slot::Tool(k) => self.tool_offset[k],
+        }
+    }
+
+    /// Sets `slot` to `v`.
+    pub fn set(&mut self, slot: Slot, v: f64) {
+        match slot {
+            Slot::Dep(i) => set_dep(&mut self.geom, i, v),
+            Slot::Compliance(j) => self.compliance[j] = v,
+            Slot::Kcub(j) => self.kcub[j] = v,
+            Slot::JointErr(j, k) => *je_mut(&mut self.joint_err[j], k) = v,
+            Slot::Base(k) => self.base[k] = v,
+            Slot::Thermal(j) => self.thermal[j] = v,
+            Slot::Bending(j) => self.bending[j] = v,
+            Slot::Payload => self.payload_kg = v,
+            Slot::Tool(k) => self.tool_offset[k] = v,
+        }
+    }
+
+    /// The geometry as a rigid [`Model`] with the base correction folded in.
+    pub fn geometry(&self) -> Result<Model, ModelError> {
+        let mut d = self.geom.clone();
+        let base = crate::model::frame_from_pose(
+            d.base_from_instrument.translation,
+            d.base_from_instrument.quaternion,
+        );
+        d.base_from_instrument = pose_data(&(base_correction(&self.base) * base));
+        Model::new(d)
+    }
+
+    /// The whole state as a model file the daemon loads: geometry (tool offset and base
+    /// correction folded in), springs of every compliant joint, joint errors. Effects with
+    /// no run-time form (thermal, bending, payload) are left out here; the caller records
+    /// them in `discovered`.
+    pub fn to_model(&self) -> Result<Model, ModelError> {
+        let mut d = self.geometry()?.data().clone();
+        let tool = crate::model::frame_from_pose(d.tool.translation, d.tool.quaternion);
+        let off = Translation3::new(
+            self.tool_offset[0],
+            self.tool_offset[1],
+            self.tool_offset[2],
+        );
+        d.tool = pose_data(&(Frame::from_parts(off, Rotation3::identity()) * tool));
+        for j in 0..6 {
+            d.stiffness[j] = (self.compliance[j] > 0.0).then(|| Stiffness {
+                klin: 1.0 / self.compliance[j],
+                kcub: self.kcub[j].max(0.0),
+            });
+            let e = self.joint_err[j];
+            let zero = JointError {
+                gear_ratio: e.gear_ratio,
+                ..Default::default()
+            };
+            let mut e = e;
+            e.backlash = e.backlash.max(0.0);
+            d.joint_errors[j] = (e != zero).then_some(e);
+        }
+        Model::new(d)
+    }
+}
+
+fn pose_data(f: &Frame) -> crate::model::PoseData {
+    let (translation, quaternion) = crate::model::pose_parts(f);
+    let s = if quaternion[0] < 0.0 { -1.0 } else { 1.0 };
+    crate::model::PoseData {
+        translation,
+        quaternion: quaternion.map(|x| s * x),
+    }
+}
+
+/// The base correction of [`Slot::Base`] as a transform.
+pub fn base_correction(b: &[f64; 6]) -> Frame {
+    Frame::from_parts(
+        Translation3::new(b[0], b[1], b[2]),
+        Rotation3::new(Vector3::new(b[3], b[4], b[5])),
+    )
+}
+
+fn dep_ref(d: &ModelData, i: usize) -> f64 {
+    let j = i % 6;
+    let e = &d.departures[j];
+    match i / 6 {
+        0 => e.da,
+        1 => e.dalpha,
+        2 if j == HAYATI_JOINT => e.dbeta,
+        2 => e.dd,
+        _ => e.dtheta,
+    }
+}
+
+fn set_dep(d: &mut ModelData, i: usize, v: f64) {
+    let j = i % 6;
+    let e = &mut d.departures[j];
+    match i / 6 {
+        0 => e.da = v,
+        1 => e.dalpha = v,
+        2 if j == HAYATI_JOINT => e.dbeta = v,
+        2 => e.dd = v,
+        _ => e.dtheta = v,
+    }
+}
+
+fn je_ref(e: &JointError, k: usize) -> &f64 {
+    match k {
+        0..=3 => &e.output[k / 2][k % 2],
+        4..=7 => &e.wave[(k - 4) / 2][k % 2],
+        8 | 9 => &e.eccentricity[k - 8],
+        _ => &e.backlash,
+    }
+}
+
+fn je_mut(e: &mut JointError, k: usize) -> &mut f64 {
+    match k {
+        0..=3 => &mut e.output[k / 2][k % 2],
+        4..=7 => &mut e.wave[(k - 4) / 2][k % 2],
+        8 | 9 => &mut e.eccentricity[k - 8],
+        _ => &mut e.backlash,
+    }
+}
+
+/// One measurement, ready for the forward model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Obs {
+    /// Resolver (motor-side) angles, rad.
+    pub q: [f64; 6],
+    /// Joint torques, N·m.
+    pub tau: [f64; 6],
+    /// Load hung at the tool, N.
+    pub load_n: f64,
+    /// Approach direction per joint (−1, 0, +1).
+    pub dir: [f64; 6],
+    /// Thermal regressor: `T − T_ref` (K) with temperatures, else 1 (a factor).
+    pub thermal: f64,
+    /// Measured target pose in the instrument frame.
+    pub meas: Frame,
+}
+
+/// Deflection of a joint with compliance `c` (rad/(N·m)) and cubic stiffness `kcub`
+/// under torque `tau` (N·m), rad.
+#[inline]
+pub fn deflection(c: f64, kcub: f64, tau: f64) -> f64 {
+    if kcub != 0.0 && c > 0.0 {
+        Stiffness {
+            klin: 1.0 / c,
+            kcub: kcub.max(0.0),
+        }
+        .deflection(tau)
+            + if kcub < 0.0 {
+                // A negative cubic term (softening) only as a small perturbation, so the
+                // fit stays smooth through zero.
+                -kcub * (c * tau).powi(3) * c
+            } else {
+                0.0
+            }
+    } else {
+        c * tau
+    }
+}
+
+/// Link angles of `obs` under the state's joint-side effects, rad.
+#[inline]
+pub fn link_angles(s: &State, obs: &Obs) -> [f64; 6] {
+    std::array::from_fn(|j| {
+        obs.q[j]
+            - deflection(s.compliance[j], s.kcub[j], obs.tau[j])
+            - s.joint_err[j].offset(obs.q[j], obs.dir[j])
+    })
+}
+
+/// The bending moment (N·m, base frame) carried at point `p` by everything fixed to DH
+/// frames ≥ `first_frame` and the tool force `force` at `p_tool`.
+fn moment_at(
+    geom: &Model,
+    f: &[Frame; 7],
+    p: &Vector3<f64>,
+    first_frame: usize,
+    p_tool: &Vector3<f64>,
+    force: &Vector3<f64>,
+) -> Vector3<f64> {
+    let mut m = (p_tool - p).cross(force);
+    for b in &geom.masses[..geom.n_masses] {
+        if b.frame >= first_frame {
+            let c = (f[b.frame] * nalgebra::Point3::from(b.com)).coords;
+            m += (c - p).cross(&(geom.gravity * b.mass));
+        }
+    }
+    m
+}
+
+/// Nominal length (m) of DH row `j` and its direction in the base frame: `a` along x of
+/// frame j+1, `d` along z of frame j.
+fn link_axis(geom: &Model, f: &[Frame; 7], j: usize) -> (f64, Vector3<f64>) {
+    let row = &geom.data().dh[j];
+    if row.a != 0.0 {
+        (row.a, f[j + 1].rotation * Vector3::x())
+    } else {
+        (row.d, f[j].rotation * Vector3::z())
+    }
+}
+
+/// Applies a rotation `theta` (rotation vector, base frame) about point `c` to `x`.
+fn rotate_about(x: &Frame, c: &Vector3<f64>, theta: &Vector3<f64>) -> Frame {
+    let r = Rotation3::new(*theta);
+    Frame::from_parts(
+        Translation3::from(r * (x.translation.vector - c) + c),
+        r * x.rotation,
+    )
+}
+
+/// The predicted target pose in the robot base frame. `geom` must be
+/// [`State::geometry`] of `s`.
+pub fn predict(s: &State, geom: &Model, obs: &Obs) -> Frame {
+    let q = link_angles(s, obs);
+    let f = geom.frames(&q);
+    let off = Translation3::new(s.tool_offset[0], s.tool_offset[1], s.tool_offset[2]);
+    let mut x = f[6] * Frame::from_parts(off, Rotation3::identity()) * *geom.tool();
+    let needs_moment = s.bending.iter().any(|c| *c != 0.0);
+    let force = if needs_moment {
+        let g = geom.gravity();
+        let dir = if g.norm() > 0.0 {
+            g / g.norm()
+        } else {
+            -Vector3::z()
+        };
+        dir * obs.load_n + g * s.payload_kg
+    } else {
+        Vector3::zeros()
+    };
+    let p_tool = x.translation.vector;
+    // From the flange back to the base: each change moves everything distal of it.
+    for j in (0..6).rev() {
+        if s.bending[j] != 0.0 {
+            let (a, b) = (f[j].translation.vector, f[j + 1].translation.vector);
+            let u = (b - a).normalize();
+            let m = moment_at(geom, &f, &a, j + 1, &p_tool, &force);
+            let theta = (m - u * m.dot(&u)) * s.bending[j];
+            x = rotate_about(&x, &(0.5 * (a + b)), &theta);
+        }
+        if s.thermal[j] != 0.0 {
+            let (len, u) = link_axis(geom, &f, j);
+            x.translation.vector += u * (len * s.thermal[j] * obs.thermal);
+        }
+    }
+    x
+}
+
+/// Residual of one observation: predicted minus measured pose (position m, orientation
+/// rad) in the base frame, with `base` = `geom.base_from_instrument()`.
+#[inline]
+pub fn residual(s: &State, geom: &Model, obs: &Obs) -> Vector6<f64> {
+    let pred = predict(s, geom, obs);
+    let meas = geom.base_from_instrument() * obs.meas;
+    pose_error(&pred, &meas)
+}
+
+/// Every candidate effect for a model whose fitted slots are `fitted` (effects already in
+/// the model are not candidates). `geom_fixed` lists the departures the model keeps fixed.
+pub fn candidates(fitted: &[Slot], geom_fixed: &[usize]) -> Vec<Effect> {
+    let has = |s: Slot| fitted.contains(&s);
+    let mut out = Vec::new();
+    for j in 0..6 {
+        let e = |kind| Effect {
+            kind,
+            target: Some(j),
+        };
+        if !has(Slot::Compliance(j)) {
+            out.push(e(Kind::JointComplianceLinear));
+        } else if !has(Slot::Kcub(j)) {
+            out.push(e(Kind::JointComplianceCubic));
+        }
+        if !has(Slot::JointErr(j, 0)) {
+            out.push(e(Kind::TransmissionError));
+        }
+        if !has(Slot::JointErr(j, 10)) {
+            out.push(e(Kind::Backlash));
+        }
+        if !has(Slot::JointErr(j, 8)) {
+            out.push(e(Kind::EncoderEccentricity));
+        }
+    }
+    for &j in &THERMAL_LINKS {
+        if !has(Slot::Thermal(j)) {
+            out.push(Effect {
+                kind: Kind::ThermalExpansion,
+                target: Some(j),
+            });
+        }
+    }
+    for &j in &BENDING_LINKS {
+        if !has(Slot::Bending(j)) {
+            out.push(Effect {
+                kind: Kind::LinkBending,
+                target: Some(j),
+            });
+        }
+    }
+    for (kind, slot) in [
+        (Kind::PayloadMassError, Slot::Payload),
+        (Kind::ToolOffsetError, Slot::Tool(0)),
+        (Kind::BaseFrameError, Slot::Base(0)),
+    ] {
+        if !has(slot) {
+            out.push(Effect { kind, target: None });
+        }
+    }
+    for &i in geom_fixed {
+        if !has(Slot::Dep(i)) {
+            out.push(Effect {
+                kind: Kind::GeometricDeparture,
+                target: Some(i),
+            });
+        }
+    }
+    out
+}
+
+/// Effects already in a model whose fitted slots are `fitted` (every slot of the effect
+/// is fitted): reported as "already modelled", never candidates.
+pub fn modelled(fitted: &[Slot]) -> Vec<Effect> {
+    let mut all: Vec<Effect> = Vec::new();
+    for kind in Kind::ALL {
+        match kind {
+            Kind::ThermalExpansion => all.extend(THERMAL_LINKS.iter().map(|&j| Effect {
+                kind,
+                target: Some(j),
+            })),
+            Kind::LinkBending => all.extend(BENDING_LINKS.iter().map(|&j| Effect {
+                kind,
+                target: Some(j),
+            })),
+            Kind::PayloadMassError | Kind::ToolOffsetError | Kind::BaseFrameError => {
+                all.push(Effect { kind, target: None })
+            }
+            Kind::GeometricDeparture => all.extend((0..24).map(|i| Effect {
+                kind,
+                target: Some(i),
+            })),
+            _ => all.extend((0..6).map(|j| Effect {
+                kind,
+                target: Some(j),
+            })),
+        }
+    }
+    all.into_iter()
+        .filter(|e| e.slots().iter().all(|s| fitted.contains(s)))
+        .collect()
+}
+
+/// The departures a free base frame absorbs exactly (δd₁ along and δθ₁ about the J1 axis):
+/// never fitted, always candidates (and always found not identifiable).
+pub const BASE_ABSORBED: [usize; 2] = [IDX_D, IDX_THETA];

@@ -1,0 +1,370 @@
+//! The least-squares machinery of discovery: whitened residuals, finite-difference
+//! Jacobians over any list of [`Slot`]s, Levenberg–Marquardt, and linearised refits on
+//! subsets of configurations (cross-validation).
+//!
+//! **Noise model (whitening).** Rows of one configuration share the resolver error of that
+//! configuration (the servo holds the same resolver reading for every load and repeat), so
+//! their residuals share a random offset with covariance `S_c = J_c·σ_r²·J_cᵀ` (`J_c` the
+//! pose Jacobian there, `σ_r` the resolver error per joint) on top of independent instrument
+//! noise `D_i` of each row (instrument noise plus the measured-torque noise seen through the
+//! springs). For a configuration the covariance is `blockdiag(D_i) + 11ᵀ⊗S_c`; it is
+//! whitened exactly by `(S_c + P⁻¹)^{-1/2}·m̂` (the precision-weighted mean
+//! `m̂ = P⁻¹·Σ D_i⁻¹ r_i`, `P = Σ D_i⁻¹`) and `D_i^{-1/2}(r_i − m̂)` (the deviations), so the
+//! sum of squares is the generalised least-squares cost and has a χ² distribution under a
+//! correct model.
+
+use nalgebra::{DMatrix, DVector, Matrix6, SymmetricEigen, Vector6};
+use rayon::prelude::*;
+
+use super::effects::{Obs, Slot, State, residual};
+use crate::model::{Model, ModelError};
+
+/// One configuration's rows and whitening.
+#[derive(Debug, Clone)]
+pub(crate) struct Block {
+    /// Observation indices.
+    pub rows: Vec<usize>,
+    /// Whether the fit uses it (false: held out).
+    pub train: bool,
+    /// Cells of repeats (same load, direction, temperature), observation indices.
+    pub cells: Vec<Vec<usize>>,
+    /// `(Σ D_i⁻¹)⁻¹`: covariance of the precision-weighted mean from row noise alone.
+    pub p_inv: Matrix6<f64>,
+    /// Whitening of the weighted mean: `(S_c + (Σ D_i⁻¹)⁻¹)^{-1/2}`.
+    pub wmean: Matrix6<f64>,
+    /// First whitened index of the block.
+    pub offset: usize,
+}
+
+/// The data of a discovery run with its noise model.
+#[derive(Debug, Clone)]
+pub(crate) struct Problem {
+    /// Every observation (training and held out).
+    pub obs: Vec<Obs>,
+    /// Configuration blocks.
+    pub blocks: Vec<Block>,
+    /// Per observation: `D_i` (row noise covariance).
+    pub d: Vec<Matrix6<f64>>,
+    /// Per observation: `D_i⁻¹` (row noise precision).
+    pub d_inv: Vec<Matrix6<f64>>,
+    /// Per observation: `D_i^{-1/2}`.
+    pub d_inv_sqrt: Vec<Matrix6<f64>>,
+    /// Length of the whitened vector.
+    pub n_white: usize,
+}
+
+impl Problem {
+    /// Builds the whitening from each row's noise covariance `d` (6×6, instrument and
+    /// torque noise) and the resolver error `sigma_resolver` (rad, per joint) through the
+    /// pose Jacobian of `geom` at the link angles of `state`.
+    pub fn new(
+        obs: Vec<Obs>,
+        blocks: Vec<(Vec<usize>, bool, Vec<Vec<usize>>)>,
+        d: &[Matrix6<f64>],
+        state: &State,
+        geom: &Model,
+        sigma_resolver: f64,
+    ) -> Self {
+        let d_inv: Vec<Matrix6<f64>> = d.iter().map(|m| inv_pow(m, -1.0)).collect();
+        let d_inv_sqrt: Vec<Matrix6<f64>> = d.iter().map(|m| inv_pow(m, -0.5)).collect();
+        let mut offset = 0;
+        let blocks = blocks
+            .into_iter()
+            .map(|(rows, train, cells)| {
+                let q = super::effects::link_angles(state, &obs[rows[0]]);
+                let j = geom.jacobian(&q);
+                let s = j * j.transpose() * (sigma_resolver * sigma_resolver);
+                let p = rows.iter().map(|&i| d_inv[i]).sum::<Matrix6<f64>>();
+                let p_inv = inv_pow(&p, -1.0);
+                let wmean = inv_pow(&(s + p_inv), -0.5);
+                let b = Block {
+                    train,
+                    cells,
+                    p_inv,
+                    wmean,
+                    offset,
+                    rows,
+                };
+                offset += 6 * (b.rows.len() + 1);
+                b
+            })
+            .collect();
+        Self {
+            obs,
+            blocks,
+            d: d.to_vec(),
+            d_inv,
+            d_inv_sqrt,
+            n_white: offset,
+        }
+    }
+
+    /// Raw residuals (pose errors, m and rad) of every observation at `state`.
+    pub fn raw(&self, state: &State) -> Result<Vec<Vector6<f64>>, ModelError> {
+        let geom = state.geometry()?;
+        Ok(self.raw_with(state, &geom))
+    }
+
+    fn raw_with(&self, state: &State, geom: &Model) -> Vec<Vector6<f64>> {
+        self.obs.iter().map(|o| residual(state, geom, o)).collect()
+    }
+
+    /// Precision-weighted mean of `raw` over `rows`, with `p_inv = (Σ D_i⁻¹)⁻¹`.
+    fn weighted_mean(
+        &self,
+        raw: &[Vector6<f64>],
+        rows: &[usize],
+        p_inv: &Matrix6<f64>,
+    ) -> Vector6<f64> {
+        p_inv
+            * rows
+                .iter()
+                .map(|&i| self.d_inv[i] * raw[i])
+                .sum::<Vector6<f64>>()
+    }
+
+    /// Whitens per-observation vectors (residuals or a Jacobian column) into `out`:
+    /// per block the whitened weighted mean, then every row's whitened deviation from it.
+    pub fn whiten(&self, raw: &[Vector6<f64>], out: &mut [f64]) {
+        for b in &self.blocks {
+            let mean = self.weighted_mean(raw, &b.rows, &b.p_inv);
+            let m = b.wmean * mean;
+            out[b.offset..b.offset + 6].copy_from_slice(m.as_slice());
+            for (k, &i) in b.rows.iter().enumerate() {
+                let dv = self.d_inv_sqrt[i] * (raw[i] - mean);
+                let o = b.offset + 6 * (k + 1);
+                out[o..o + 6].copy_from_slice(dv.as_slice());
+            }
+        }
+    }
+
+    /// Whitened indices of the blocks selected by `pick`.
+    pub fn white_rows(&self, pick: impl Fn(&Block) -> bool) -> Vec<usize> {
+        self.blocks
+            .iter()
+            .filter(|b| pick(b))
+            .flat_map(|b| b.offset..b.offset + 6 * (b.rows.len() + 1))
+            .collect()
+    }
+
+    /// Sum of squares of the pure error (repeats within cells), whitened, and its degrees
+    /// of freedom, over training blocks.
+    pub fn pure_error(&self, raw: &[Vector6<f64>]) -> (f64, usize) {
+        let (mut ss, mut dof) = (0.0, 0);
+        for b in self.blocks.iter().filter(|b| b.train) {
+            for c in &b.cells {
+                if c.len() < 2 {
+                    continue;
+                }
+                let p = c.iter().map(|&i| self.d_inv[i]).sum::<Matrix6<f64>>();
+                let mean = self.weighted_mean(raw, c, &inv_pow(&p, -1.0));
+                ss += c
+                    .iter()
+                    .map(|&i| (self.d_inv_sqrt[i] * (raw[i] - mean)).norm_squared())
+                    .sum::<f64>();
+                dof += 6 * (c.len() - 1);
+            }
+        }
+        (ss, dof)
+    }
+}
+
+/// `m^power` of a symmetric positive definite matrix (eigenvalues floored).
+fn inv_pow(m: &Matrix6<f64>, power: f64) -> Matrix6<f64> {
+    let e = SymmetricEigen::new(*m);
+    let d = e.eigenvalues.map(|v| v.max(1e-300).powf(power));
+    e.eigenvectors * Matrix6::from_diagonal(&d) * e.eigenvectors.transpose()
+}
+
+/// Residuals and scaled Jacobian at a state.
+#[derive(Debug, Clone)]
+pub(crate) struct Lin {
+    /// Raw residual per observation.
+    pub raw: Vec<Vector6<f64>>,
+    /// Whitened residuals (all blocks).
+    pub white: DVector<f64>,
+    /// Raw Jacobian columns per slot (d residual / d (value / scale)).
+    pub jraw: Vec<Vec<Vector6<f64>>>,
+    /// Whitened Jacobian (all blocks × slots).
+    pub jwhite: DMatrix<f64>,
+}
+
+/// Residuals and finite-difference Jacobian of `slots` at `state` (columns in parallel).
+pub(crate) fn linearise(p: &Problem, state: &State, slots: &[Slot]) -> Result<Lin, ModelError> {
+    let geom = state.geometry()?;
+    let raw = p.raw_with(state, &geom);
+    let jraw: Vec<Vec<Vector6<f64>>> = slots
+        .par_iter()
+        .map(|&slot| {
+            let h = 1e-3 * slot.scale();
+            // Forward difference, backward when the forward point leaves the valid space.
+            let mut out = None;
+            for h in [h, -h] {
+                let mut s = state.clone();
+                s.set(slot, state.get(slot) + h);
+                let g = if slot.geometric() {
+                    match s.geometry() {
+                        Ok(g) => g,
+                        Err(_) => continue,
+                    }
+                } else {
+                    geom.clone()
+                };
+                let r2 = p.raw_with(&s, &g);
+                out = Some(
+                    r2.iter()
+                        .zip(&raw)
+                        .map(|(a, b)| (a - b) * (slot.scale() / h))
+                        .collect(),
+                );
+                break;
+            }
+            out.ok_or_else(|| ModelError::Invalid {
+                key: format!("{slot:?}"),
+                reason: "no valid finite-difference step".into(),
+            })
+        })
+        .collect::<Result<_, ModelError>>()?;
+    let mut white = DVector::zeros(p.n_white);
+    p.whiten(&raw, white.as_mut_slice());
+    let mut jwhite = DMatrix::zeros(p.n_white, slots.len());
+    let mut col = vec![0.0; p.n_white];
+    for (k, c) in jraw.iter().enumerate() {
+        p.whiten(c, &mut col);
+        jwhite.column_mut(k).copy_from_slice(&col);
+    }
+    Ok(Lin {
+        raw,
+        white,
+        jraw,
+        jwhite,
+    })
+}
+
+/// Normal equations `JᵀJ`, `Jᵀr` over whitened `rows` and columns `cols`.
+pub(crate) fn normal_eq(lin: &Lin, rows: &[usize], cols: &[usize]) -> (DMatrix<f64>, DVector<f64>) {
+    let k = cols.len();
+    let mut a = DMatrix::zeros(k, k);
+    let mut g = DVector::zeros(k);
+    let mut jr = vec![0.0; k];
+    for &i in rows {
+        for (c, &col) in cols.iter().enumerate() {
+            jr[c] = lin.jwhite[(i, col)];
+        }
+        let r = lin.white[i];
+        for a_ in 0..k {
+            let x = jr[a_];
+            if x == 0.0 {
+                continue;
+            }
+            g[a_] += x * r;
+            for b_ in a_..k {
+                a[(a_, b_)] += x * jr[b_];
+            }
+        }
+    }
+    for a_ in 0..k {
+        for b_ in 0..a_ {
+            a[(a_, b_)] = a[(b_, a_)];
+        }
+    }
+    (a, g)
+}
+
+/// Solves `(A + λI)·δ = −g` on the eigen-subspace of `A` above a relative `1e-10` (the
+/// directions the data do not see get no step). Returns δ and the rank used.
+pub(crate) fn damped_solve(
+    a: &DMatrix<f64>,
+    g: &DVector<f64>,
+    lambda: f64,
+) -> (DVector<f64>, usize) {
+    let e = SymmetricEigen::new(a.clone());
+    let emax = e.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    let mut d = DVector::zeros(g.len());
+    let mut rank = 0;
+    for (i, &ev) in e.eigenvalues.iter().enumerate() {
+        if ev > 1e-10 * emax && ev > 0.0 {
+            let v = e.eigenvectors.column(i);
+            d -= v * (v.dot(g) / (ev + lambda));
+            rank += 1;
+        }
+    }
+    (d, rank)
+}
+
+/// Pseudo-inverse of a symmetric positive semi-definite matrix (same cut as
+/// [`damped_solve`]).
+pub(crate) fn pinv(a: &DMatrix<f64>) -> DMatrix<f64> {
+    let e = SymmetricEigen::new(a.clone());
+    let emax = e.eigenvalues.iter().cloned().fold(0.0, f64::max);
+    let mut out = DMatrix::zeros(a.nrows(), a.ncols());
+    for (i, &ev) in e.eigenvalues.iter().enumerate() {
+        if ev > 1e-10 * emax && ev > 0.0 {
+            let v = e.eigenvectors.column(i);
+            out += v * v.transpose() / ev;
+        }
+    }
+    out
+}
+
+/// A converged fit.
+#[derive(Debug, Clone)]
+pub(crate) struct Fitted {
+    /// The fitted state.
+    pub state: State,
+    /// Whitened training cost.
+    pub cost: f64,
+    /// Linearisation at the solution.
+    pub lin: Lin,
+}
+
+/// Levenberg–Marquardt on the training blocks over `slots`, from `state`.
+pub(crate) fn fit(p: &Problem, state: &State, slots: &[Slot]) -> Result<Fitted, ModelError> {
+    let rows = p.white_rows(|b| b.train);
+    let cols: Vec<usize> = (0..slots.len()).collect();
+    let cost_of =
+        |lin_white: &DVector<f64>| rows.iter().map(|&i| lin_white[i].powi(2)).sum::<f64>();
+    let mut st = state.clone();
+    let mut lin = linearise(p, &st, slots)?;
+    let mut cost = cost_of(&lin.white);
+    let (mut a, mut g) = normal_eq(&lin, &rows, &cols);
+    let mut lambda = 1e-6 * (0..a.nrows()).map(|i| a[(i, i)]).fold(0.0, f64::max);
+    let mut white = DVector::zeros(p.n_white);
+    for _ in 0..40 {
+        let (d, _) = damped_solve(&a, &g, lambda);
+        let mut trial = st.clone();
+        for (k, &s) in slots.iter().enumerate() {
+            trial.set(s, st.get(s) + d[k] * s.scale());
+        }
+        // A step that leaves the valid model space (e.g. a departure beyond its bound)
+        // counts as an increase.
+        let c = match p.raw(&trial) {
+            Ok(raw) => {
+                p.whiten(&raw, white.as_mut_slice());
+                cost_of(&white)
+            }
+            Err(_) => f64::INFINITY,
+        };
+        if c < cost {
+            let gain = cost - c;
+            st = trial;
+            cost = c;
+            lin = linearise(p, &st, slots)?;
+            (a, g) = normal_eq(&lin, &rows, &cols);
+            lambda = (lambda / 10.0).max(1e-15);
+            if gain < 1e-9 * cost.max(1.0) || d.norm() < 1e-9 {
+                break;
+            }
+        } else {
+            lambda = lambda.max(1e-12) * 10.0;
+            if lambda > 1e12 || d.norm() < 1e-12 {
+                break;
+            }
+        }
+    }
+    Ok(Fitted {
+        state: st,
+        cost,
+        lin,
+    })
+}
