@@ -435,3 +435,72 @@ fn sim_on_a_missing_can_interface_fails_clearly() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn discover_names_hidden_backlash_from_files_and_writes_a_model_the_daemon_loads() {
+    let dir = std::env::temp_dir().join(format!("pa10-cli-discover-{}", std::process::id()));
+    let d = dir.to_str().unwrap();
+    let o = pa10(&[
+        "sim",
+        "discovery",
+        "--scenario",
+        "backlash-j1",
+        "--seed",
+        "3",
+        "--configs",
+        "24",
+        "--out",
+        d,
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let p = |f: &str| dir.join(f).to_str().unwrap().to_string();
+    let (start, cal, hold, ext, rep) = (
+        p("start.yaml"),
+        p("cal.csv"),
+        p("holdout.csv"),
+        p("extended.yaml"),
+        p("report"),
+    );
+    let j = stdout_json(&pa10(&[
+        "discover",
+        "--model",
+        &start,
+        "--data",
+        &cal,
+        "--holdout",
+        &hold,
+        "--json",
+        "--out",
+        &ext,
+        "--report",
+        &rep,
+    ]));
+    assert_eq!(j["significant_gap_before"], true);
+    let e = &j["effects"][0];
+    assert_eq!(e["name"], "backlash");
+    assert_eq!(e["joint"], 1);
+    let b = e["params"]["backlash"].as_f64().unwrap();
+    assert!((b - 4e-4).abs() < 4.0 * e["stderr"]["backlash"].as_f64().unwrap() + 2e-5);
+    assert!(e["gain_mm"].as_f64().unwrap() > 0.0);
+    assert!(j["gap_after_mm"].as_f64().unwrap() < j["gap_before_mm"].as_f64().unwrap());
+    assert!(j["noise_floor_mm"].as_f64().unwrap() > 0.0);
+    assert_eq!(j["steps"][0]["accepted"], "backlash[J1]");
+    // The extended model loads and carries the backlash for the daemon.
+    let m = pa10::model::Model::load(&ext).unwrap();
+    assert!(m.data().joint_errors[0].unwrap().backlash > 3e-4);
+    assert_eq!(m.data().discovered[0].name, "backlash");
+    assert!(
+        std::fs::read_dir(&rep).unwrap().any(|f| f
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .ends_with(".svg"))
+    );
+    // Bad input: a precise error, nothing written.
+    let o = pa10(&["discover", "--data", &cal, "--only", "gremlins"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown effect `gremlins`"));
+    let o = pa10(&["sim", "discovery", "--scenario", "nope", "--out", d]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("known: none, cubic-j2"));
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -12,7 +12,9 @@
 //!   plus the configured payload at the link setpoint (noise-free, exact only when the
 //!   model's bodies and the payload are right).
 //! - **Compensation**: the motor target that puts the *link* at the setpoint,
-//!   `q_motor = q_link + δ(τ)` ([`Model::compensate`]).
+//!   `q_motor = q_link + δ(τ) + e(q_motor) + (b/2)·dir` ([`Model::compensate_dir`]: springs,
+//!   and the transmission error, eccentricity and backlash `pa10 discover` may add; `dir` is
+//!   the direction each joint last moved in).
 //! - **Position loop**: `speed = q̇_setpoint + K·(q_motor_target − q_motor_measured)`,
 //!   clamped to the speed limits.
 //! - **Safety**: stale feedback, following error beyond the limit, a joint outside its
@@ -128,6 +130,8 @@ pub struct Controller {
     setpoint: Setpoint,
     activity: Activity,
     tau_filtered: [f64; 6],
+    /// Direction each joint last moved in (−1, 0, +1): the side its backlash is taken up on.
+    direction: [f64; 6],
     last_feedback_s: f64,
     last_state: Option<JointState>,
 }
@@ -149,6 +153,7 @@ impl Controller {
             },
             activity: Activity::Holding,
             tau_filtered: [0.0; 6],
+            direction: [0.0; 6],
             last_feedback_s: first.stamp_s,
             last_state: Some(*first),
         }
@@ -325,7 +330,15 @@ impl Controller {
                 self.tau_filtered
             }
         };
-        let target = match self.model.compensate(&self.setpoint.q, &tau) {
+        for (d, v) in self.direction.iter_mut().zip(&self.setpoint.qd) {
+            if *v != 0.0 {
+                *d = v.signum();
+            }
+        }
+        let target = match self
+            .model
+            .compensate_dir(&self.setpoint.q, &tau, &self.direction)
+        {
             Ok(t) => t,
             Err(_) => {
                 return self.fault(Fault::Setpoint(MoveError::NonFinite("compensated target")));

@@ -318,16 +318,51 @@ pub(crate) struct Fitted {
     pub lin: Lin,
 }
 
-/// Levenberg–Marquardt on the training blocks over `slots`, from `state`.
-pub(crate) fn fit(p: &Problem, state: &State, slots: &[Slot]) -> Result<Fitted, ModelError> {
+/// Standard deviation, in units of a slot's scale, of the weak prior that holds effect
+/// parameters (not the model's own) at zero in directions the data barely see.
+pub(crate) const EFFECT_PRIOR: f64 = 10.0;
+
+/// Prior precision (normalised units) of each slot: zero for the model's own slots (`own`),
+/// `1/EFFECT_PRIOR²` for effect slots.
+pub(crate) fn prior(slots: &[Slot], own: &[Slot]) -> Vec<f64> {
+    slots
+        .iter()
+        .map(|s| {
+            if own.contains(s) {
+                0.0
+            } else {
+                1.0 / (EFFECT_PRIOR * EFFECT_PRIOR)
+            }
+        })
+        .collect()
+}
+
+/// Levenberg–Marquardt on the training blocks over `slots`, from `state`, with prior
+/// precisions `prior` (normalised units, centred on zero).
+pub(crate) fn fit(
+    p: &Problem,
+    state: &State,
+    slots: &[Slot],
+    prior: &[f64],
+) -> Result<Fitted, ModelError> {
     let rows = p.white_rows(|b| b.train);
     let cols: Vec<usize> = (0..slots.len()).collect();
+    let norm = |st: &State| -> Vec<f64> { slots.iter().map(|s| st.get(*s) / s.scale()).collect() };
+    let prior_cost = |u: &[f64]| u.iter().zip(prior).map(|(u, w)| w * u * u).sum::<f64>();
     let cost_of =
         |lin_white: &DVector<f64>| rows.iter().map(|&i| lin_white[i].powi(2)).sum::<f64>();
+    let with_prior = |a: &mut DMatrix<f64>, g: &mut DVector<f64>, u: &[f64]| {
+        for k in 0..u.len() {
+            a[(k, k)] += prior[k];
+            g[k] += prior[k] * u[k];
+        }
+    };
     let mut st = state.clone();
     let mut lin = linearise(p, &st, slots)?;
-    let mut cost = cost_of(&lin.white);
+    let mut u = norm(&st);
+    let mut cost = cost_of(&lin.white) + prior_cost(&u);
     let (mut a, mut g) = normal_eq(&lin, &rows, &cols);
+    with_prior(&mut a, &mut g, &u);
     let mut lambda = 1e-6 * (0..a.nrows()).map(|i| a[(i, i)]).fold(0.0, f64::max);
     let mut white = DVector::zeros(p.n_white);
     for _ in 0..40 {
@@ -338,19 +373,22 @@ pub(crate) fn fit(p: &Problem, state: &State, slots: &[Slot]) -> Result<Fitted, 
         }
         // A step that leaves the valid model space (e.g. a departure beyond its bound)
         // counts as an increase.
+        let ut = norm(&trial);
         let c = match p.raw(&trial) {
             Ok(raw) => {
                 p.whiten(&raw, white.as_mut_slice());
-                cost_of(&white)
+                cost_of(&white) + prior_cost(&ut)
             }
             Err(_) => f64::INFINITY,
         };
         if c < cost {
             let gain = cost - c;
             st = trial;
+            u = ut;
             cost = c;
             lin = linearise(p, &st, slots)?;
             (a, g) = normal_eq(&lin, &rows, &cols);
+            with_prior(&mut a, &mut g, &u);
             lambda = (lambda / 10.0).max(1e-15);
             if gain < 1e-9 * cost.max(1.0) || d.norm() < 1e-9 {
                 break;

@@ -185,6 +185,8 @@ pub struct Score {
     pub heldout_gain: Option<f64>,
     /// Paired t statistic over held-out configurations, when evaluated.
     pub paired_t: Option<f64>,
+    /// One-sided sign-test p-value of "held-out configurations fit better", when evaluated.
+    pub sign_p: Option<f64>,
     /// Held-out RMS position error with the effect, mm, when evaluated.
     pub heldout_gap_mm: Option<f64>,
     /// Whether it passed every test.
@@ -849,9 +851,9 @@ pub fn discover(
     let base_slots = slots.clone();
     // Fit, re-estimate the noise model at the fit (it depends on the springs), fit again.
     let (p0, _) = problem(&lay, &state0)?;
-    let first = fit::fit(&p0, &state0, &slots)?;
+    let first = fit::fit(&p0, &state0, &slots, &fit::prior(&slots, &slots))?;
     let (mut prob, mut noise) = problem(&lay, &first.state)?;
-    let mut cur = fit::fit(&prob, &first.state, &slots)?;
+    let mut cur = fit::fit(&prob, &first.state, &slots, &fit::prior(&slots, &slots))?;
     let noise0 = noise;
     let floor = noise_floor_mm(&prob, &cur.state, &cur.state.geometry()?, &lay.folds, sr);
     let lof0 = lack_of_fit(&prob, &cur.lin);
@@ -931,6 +933,7 @@ pub fn discover(
                         p_adjusted: 1.0,
                         heldout_gain: None,
                         paired_t: None,
+                        sign_p: None,
                         heldout_gap_mm: None,
                         passed: false,
                         note: "not identifiable: the current model absorbs it on these poses"
@@ -953,6 +956,7 @@ pub fn discover(
                     p_adjusted: 1.0,
                     heldout_gain: None,
                     paired_t: None,
+                    sign_p: None,
                     heldout_gap_mm: None,
                     passed: false,
                     note: String::new(),
@@ -1005,17 +1009,22 @@ pub fn discover(
             } else {
                 0.0
             };
-            let t_crit = stats::t_quantile(1.0 - opts.alpha, (n - 1.0).max(1.0));
+            // Two held-out tests at α/2 each (Bonferroni): the paired t-test, and the sign
+            // test, which heavy-tailed per-configuration gains cannot fool.
+            let t_crit = stats::t_quantile(1.0 - 0.5 * opts.alpha, (n - 1.0).max(1.0));
+            let better = d.iter().filter(|x| **x > 0.0).count();
+            let sign_p = stats::sign_test(better, d.len());
             s.heldout_gain = Some(mean * n);
             s.paired_t = Some(t);
+            s.sign_p = Some(sign_p);
             s.heldout_gap_mm = Some(gap_c);
-            if t > t_crit {
+            if t > t_crit || sign_p < 0.5 * opts.alpha {
                 s.passed = true;
                 s.note = "accepted".into();
                 accepted = Some(*ci);
             } else {
                 s.note = format!(
-                    "held-out gain not significant (paired t = {t:.2} ≤ {t_crit:.2} over {n} held-out configurations)"
+                    "held-out gain not significant: paired t = {t:.2} ≤ {t_crit:.2}, {better} of {n} held-out configurations better (sign-test p = {sign_p:.1e})"
                 );
             }
         }
@@ -1040,7 +1049,8 @@ pub fn discover(
             st.set(all[col], cur.state.get(all[col]) + d[c] * all[col].scale());
         }
         slots.extend(e.slots());
-        let mut refit = fit::fit(&prob, &st, &slots)?;
+        let pr = fit::prior(&slots, &base_slots);
+        let mut refit = fit::fit(&prob, &st, &slots, &pr)?;
         // A missing effect can drag the geometry far from nominal while the model tries to
         // absorb it; refit also from the starting geometry with the effects' estimates, and
         // keep the better optimum.
@@ -1048,12 +1058,12 @@ pub fn discover(
         for &sl in slots.iter().filter(|s| !base_slots.contains(s)) {
             st2.set(sl, refit.state.get(sl));
         }
-        let alt = fit::fit(&prob, &st2, &slots)?;
+        let alt = fit::fit(&prob, &st2, &slots, &pr)?;
         if alt.cost < refit.cost {
             refit = alt;
         }
         (prob, noise) = problem(&lay, &refit.state)?;
-        cur = fit::fit(&prob, &refit.state, &slots)?;
+        cur = fit::fit(&prob, &refit.state, &slots, &pr)?;
         lof = lack_of_fit(&prob, &cur.lin);
         let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
         let (_, g2) = heldout(
@@ -1070,7 +1080,10 @@ pub fn discover(
     // Uncertainties at the final fit.
     let rows = prob.white_rows(|b| b.train);
     let cols: Vec<usize> = (0..slots.len()).collect();
-    let (a, _) = fit::normal_eq(&cur.lin, &rows, &cols);
+    let (mut a, _) = fit::normal_eq(&cur.lin, &rows, &cols);
+    for (k, w) in fit::prior(&slots, &base_slots).iter().enumerate() {
+        a[(k, k)] += w;
+    }
     let cov = fit::pinv(&a) * lof.between.ratio.min(lof.within.ratio).max(1.0);
     let effects_out: Vec<Found> = found
         .iter()

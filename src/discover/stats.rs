@@ -160,6 +160,21 @@ pub fn f_sf(x: f64, d1: f64, d2: f64) -> f64 {
     beta_i(0.5 * d2, 0.5 * d1, d2 / (d2 + d1 * x)).clamp(0.0, 1.0)
 }
 
+/// One-sided sign test: P(at least `k` of `n` fair coin flips come up heads).
+pub fn sign_test(k: usize, n: usize) -> f64 {
+    if k == 0 {
+        return 1.0;
+    }
+    // Σ_{i ≥ k} C(n, i) / 2ⁿ in logs.
+    let ln_c = |i: usize| {
+        ln_gamma(n as f64 + 1.0) - ln_gamma(i as f64 + 1.0) - ln_gamma((n - i) as f64 + 1.0)
+    };
+    (k..=n)
+        .map(|i| (ln_c(i) - n as f64 * std::f64::consts::LN_2).exp())
+        .sum::<f64>()
+        .min(1.0)
+}
+
 /// Quantile of the standard normal distribution (Acklam; relative error < 1.2e-9).
 pub fn normal_quantile(p: f64) -> f64 {
     const A: [f64; 6] = [
@@ -234,6 +249,9 @@ mod tests {
         // χ²: median of k=2 is 2 ln 2
         assert!((chi2_sf(2.0 * 2f64.ln(), 2.0) - 0.5).abs() < 1e-12);
         assert!((chi2_sf(3000.0, 3000.0) - 0.496_566_438_8).abs() < 1e-8);
+        // sign test: 8 of 8 → 1/256; 5 of 10 → 0.623
+        assert!((sign_test(8, 8) - 1.0 / 256.0).abs() < 1e-12);
+        assert!((sign_test(5, 10) - 0.623_046_875).abs() < 1e-9);
         // F (scipy.stats.f.sf)
         assert!((f_sf(1.1, 2634.0, 480.0) - 0.092_319_620_06).abs() < 1e-8);
         assert!((f_sf(3.0, 3.0, 480.0) - 0.030_292_059_55).abs() < 1e-8);

@@ -28,6 +28,8 @@ pub struct SimArgs {
 pub enum SimCmd {
     /// Generate the seed paper's measurement campaign on a hidden simulated robot.
     Measure(MeasureArgs),
+    /// Generate a discovery campaign on a hidden robot with an effect the model lacks.
+    Discovery(crate::discover_cmd::SimDiscoveryArgs),
     /// Replay a candump log onto a CAN interface with its original timing.
     Replay(ReplayArgs),
     /// Decode a candump log with the codec: one JSON list of {"id", "signals"} (DBC names, SI).
@@ -95,6 +97,7 @@ pub struct ReplayArgs {
 pub fn sim(a: &SimArgs) -> Result<()> {
     match &a.cmd {
         Some(SimCmd::Measure(m)) => measure(m),
+        Some(SimCmd::Discovery(d)) => crate::discover_cmd::sim(d),
         Some(SimCmd::Replay(r)) => replay(r),
         Some(SimCmd::Decode { file }) => decode_log(file),
         None => run_sim(&a.run),

@@ -1,11 +1,12 @@
-//! `pa10`: the user's tool for the PA10-6CE — model queries today, calibration, accuracy
-//! bounds, discovery and the daemon client as their issues land.
+//! `pa10`: the user's tool for the PA10-6CE — model queries, accuracy bounds, calibration,
+//! discovery of missing effects, the simulator and the daemon client.
 //!
 //! Argument parsing and wiring only; the work is done by the `pa10` library.
 
 mod accuracy_cmd;
 mod calib_cmd;
 mod client_cmd;
+mod discover_cmd;
 mod model_cmds;
 
 use std::process::ExitCode;
@@ -30,6 +31,8 @@ enum Command {
     Accuracy(accuracy_cmd::AccuracyArgs),
     /// Calibrate the flexible geometric model on measurements (two-level LM, seed paper II-C).
     Calibrate(calib_cmd::CalibrateArgs),
+    /// Find what the model misses: name the missing effect, add it, show the gap shrink.
+    Discover(discover_cmd::DiscoverArgs),
     /// Simulated PA10: the servo controller on a CAN interface, measurement campaigns, replay.
     Sim(calib_cmd::SimArgs),
     /// Daemon: its state (pose, joints, faults, cycle statistics).
@@ -82,6 +85,7 @@ fn main() -> ExitCode {
         Command::Model(c) => model_cmds::model(&c),
         Command::Accuracy(a) => accuracy_cmd::accuracy(&a),
         Command::Calibrate(a) => calib_cmd::calibrate(&a),
+        Command::Discover(a) => discover_cmd::run(&a),
         Command::Sim(c) => calib_cmd::sim(&c),
         Command::Status(c) => client_cmd::status(&c),
         Command::Move { conn, cmd } => client_cmd::move_cmd(&conn, &cmd),
