@@ -637,7 +637,8 @@ pub fn residual(s: &State, geom: &Model, obs: &Obs) -> Vector6<f64> {
 }
 
 /// Every candidate effect for a model whose fitted slots are `fitted` (effects already in
-/// the model are not candidates). `geom_fixed` lists the departures the model keeps fixed.
+/// the model are not candidates). `geom_fixed` lists departures the model keeps fixed that
+/// the data could see.
 pub fn candidates(fitted: &[Slot], geom_fixed: &[usize]) -> Vec<Effect> {
     let has = |s: Slot| fitted.contains(&s);
     let mut out = Vec::new();
@@ -730,5 +731,5 @@ pub fn modelled(fitted: &[Slot]) -> Vec<Effect> {
 }
 
 /// The departures a free base frame absorbs exactly (δd₁ along and δθ₁ about the J1 axis):
-/// never fitted, always candidates (and always found not identifiable).
+/// never fitted, never candidates, reported not identifiable.
 pub const BASE_ABSORBED: [usize; 2] = [IDX_D, IDX_THETA];

@@ -865,12 +865,23 @@ pub fn discover(
     let raw_before = cur.lin.raw.clone();
     let mut steps = Vec::new();
     let mut found: Vec<(Effect, f64)> = Vec::new();
-    let mut not_identifiable = Vec::new();
+    // What a free base frame absorbs exactly is not identifiable by construction (scoring
+    // it numerically would only measure the curvature of the rotation group).
+    let mut not_identifiable: Vec<String> = BASE_ABSORBED
+        .iter()
+        .map(|&i| {
+            Effect {
+                kind: Kind::GeometricDeparture,
+                target: Some(i),
+            }
+            .label()
+        })
+        .collect();
     let mut gap = gap0;
     let mut lof = lof0;
     let mut go = significant;
     while go && found.len() < opts.max_effects {
-        let cands: Vec<Effect> = effects::candidates(&slots, &BASE_ABSORBED)
+        let cands: Vec<Effect> = effects::candidates(&slots, &[])
             .into_iter()
             .filter(|e| opts.only.as_ref().is_none_or(|o| o.contains(&e.kind)))
             .collect();

@@ -169,10 +169,14 @@ fn print(d: &Discovery, out: Option<&Path>) {
     );
     println!("held-out by {}", d.heldout);
     println!();
-    println!(
-        "{:>4} {:>34} {:>4} {:>10} {:>9} {:>9} {:>8}  result",
-        "step", "candidate", "k", "Δχ²", "ΔBIC", "p (adj)", "t"
-    );
+    if d.steps.is_empty() {
+        println!("no candidate tried: the model already fits to the noise floor");
+    } else {
+        println!(
+            "{:>4} {:>34} {:>4} {:>10} {:>9} {:>9} {:>8}  result",
+            "step", "candidate", "k", "Δχ²", "ΔBIC", "p (adj)", "t"
+        );
+    }
     for s in &d.steps {
         for c in s.candidates.iter().filter(|c| c.identifiable > 0).take(5) {
             println!(
