@@ -2,6 +2,7 @@
 //! identification of the flexible geometric model.
 
 pub mod base;
+pub mod collect;
 pub mod dataset;
 pub mod fit;
 pub mod report;

@@ -111,6 +111,8 @@ pub struct Status {
     pub setpoint: [f64; 6],
     /// Resolver angles, rad.
     pub q_motor: [f64; 6],
+    /// Motor currents, A (the last cycle's).
+    pub current: [f64; 6],
     /// Tool position of the setpoint, m (base frame).
     pub tool_position: [f64; 3],
     /// Tool orientation of the setpoint, quaternion w, x, y, z.
@@ -185,6 +187,7 @@ impl Shared {
             servo: self.servo.map(|s| format!("{s:?}")),
             setpoint,
             q_motor: self.last.map(|s| s.q_motor).unwrap_or([0.0; 6]),
+            current: self.last.map(|s| s.current).unwrap_or([0.0; 6]),
             tool_position: p,
             tool_quaternion: q,
             payload_n: payload,

@@ -56,7 +56,7 @@ pub enum MoveCmd {
     },
 }
 
-fn send(c: &Conn, req: &Value) -> Result<Value> {
+pub(crate) fn send(c: &Conn, req: &Value) -> Result<Value> {
     let mut s = UnixStream::connect(&c.socket).with_context(|| {
         format!(
             "connecting to pa10d at {} (is it running?)",

@@ -6,6 +6,8 @@
 mod accuracy_cmd;
 mod calib_cmd;
 mod client_cmd;
+mod collect_cmd;
+mod demo_cmd;
 mod discover_cmd;
 mod model_cmds;
 
@@ -31,6 +33,11 @@ enum Command {
     Accuracy(accuracy_cmd::AccuracyArgs),
     /// Calibrate the flexible geometric model on measurements (two-level LM, seed paper II-C).
     Calibrate(calib_cmd::CalibrateArgs),
+    /// The whole story on a simulated PA10: gather through pa10d, calibrate, validate.
+    Demo(demo_cmd::DemoArgs),
+    /// Drive the daemon through a pose list and record a calibration dataset.
+    #[command(subcommand)]
+    Collect(collect_cmd::CollectCmd),
     /// Find what the model misses: name the missing effect, add it, show the gap shrink.
     Discover(discover_cmd::DiscoverArgs),
     /// Simulated PA10: the servo controller on a CAN interface, measurement campaigns, replay.
@@ -86,6 +93,8 @@ fn main() -> ExitCode {
         Command::Accuracy(a) => accuracy_cmd::accuracy(&a),
         Command::Calibrate(a) => calib_cmd::calibrate(&a),
         Command::Discover(a) => discover_cmd::run(&a),
+        Command::Demo(a) => demo_cmd::run(&a),
+        Command::Collect(c) => collect_cmd::run(&c),
         Command::Sim(c) => calib_cmd::sim(&c),
         Command::Status(c) => client_cmd::status(&c),
         Command::Move { conn, cmd } => client_cmd::move_cmd(&conn, &cmd),

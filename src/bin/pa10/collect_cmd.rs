@@ -1,0 +1,242 @@
+//! `pa10 collect`: drive the daemon through a pose list and record resolver angles and motor
+//! currents per pose; merge them with the instrument's measurements into a dataset. The
+//! driving helpers here are shared with `pa10 demo`, which talks to an in-process daemon
+//! through the same JSON requests.
+
+use std::io::BufRead;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Subcommand};
+use pa10::calib::collect::{self, RobotSample};
+use pa10::daemon::runtime::Shared;
+use serde_json::{Value, json};
+
+use crate::client_cmd::Conn;
+
+/// A way to send the daemon one JSON request and get its answer.
+pub trait Api {
+    /// Sends `req`, returns the daemon's answer (any `ok`).
+    fn call(&mut self, req: Value) -> Result<Value>;
+}
+
+/// The daemon behind its Unix socket.
+pub struct Socket(pub Conn);
+
+impl Api for Socket {
+    fn call(&mut self, req: Value) -> Result<Value> {
+        crate::client_cmd::send(&self.0, &req)
+    }
+}
+
+/// A daemon running in this process (the demo): the same request handler as the socket's.
+pub struct InProcess(pub Arc<Mutex<Shared>>);
+
+impl Api for InProcess {
+    fn call(&mut self, req: Value) -> Result<Value> {
+        Ok(pa10::daemon::api::handle(&self.0, &req.to_string()))
+    }
+}
+
+/// Sends `req`; a refusal is an error with the daemon's reason.
+pub fn checked(api: &mut dyn Api, req: Value) -> Result<Value> {
+    let v = api.call(req.clone())?;
+    if v["ok"] != true {
+        bail!(
+            "pa10d refused {}: {}",
+            req["cmd"],
+            v["error"].as_str().unwrap_or("unknown error")
+        );
+    }
+    Ok(v)
+}
+
+/// Polls `status` until the arm holds (an error on a fault or after `timeout`).
+pub fn wait_holding(api: &mut dyn Api, timeout: Duration) -> Result<Value> {
+    let end = Instant::now() + timeout;
+    loop {
+        let st = checked(api, json!({"cmd": "status"}))?["status"].clone();
+        match st["state"].as_str() {
+            Some("holding") => return Ok(st),
+            Some("fault") => bail!("pa10d faulted: {}", st["fault"]),
+            _ if Instant::now() > end => bail!("the move did not settle within {timeout:?}"),
+            _ => std::thread::sleep(Duration::from_millis(10)),
+        }
+    }
+}
+
+/// Sends a move and waits until it settles.
+pub fn move_wait(api: &mut dyn Api, req: Value) -> Result<()> {
+    let t = Instant::now();
+    let v = checked(api, req)?;
+    let d = v["duration_s"].as_f64().unwrap_or(0.0);
+    wait_holding(api, Duration::from_secs_f64(d + 10.0))?;
+    tracing::debug!(
+        planned_s = d,
+        took_s = t.elapsed().as_secs_f64(),
+        "move settled"
+    );
+    Ok(())
+}
+
+fn arr6(v: &Value) -> Result<[f64; 6]> {
+    let a = v
+        .as_array()
+        .filter(|a| a.len() == 6)
+        .context("expected six numbers")?;
+    let mut out = [0.0; 6];
+    for (o, x) in out.iter_mut().zip(a) {
+        *o = x.as_f64().context("expected a number")?;
+    }
+    Ok(out)
+}
+
+/// Waits until the resolvers stop moving (no joint changes by more than one count, 2π/(16384·50)
+/// rad, between polls 10 ms apart, three polls running), at least `min`, at most `max`: after a
+/// move or a load change the servo and the compensation need a few loop time constants.
+pub fn wait_still(api: &mut dyn Api, min: Duration, max: Duration) -> Result<()> {
+    const COUNT: f64 = std::f64::consts::TAU / (16384.0 * 50.0);
+    let t = Instant::now();
+    let (mut last, _) = sample(api)?;
+    let mut still = 0;
+    loop {
+        std::thread::sleep(Duration::from_millis(10));
+        let (q, _) = sample(api)?;
+        let step = (0..6).map(|j| (q[j] - last[j]).abs()).fold(0.0, f64::max);
+        still = if step <= 1.5 * COUNT { still + 1 } else { 0 };
+        last = q;
+        if (t.elapsed() >= min && still >= 3) || t.elapsed() >= max {
+            return Ok(());
+        }
+    }
+}
+
+/// One robot-side sample: resolver angles (rad) and motor currents (A) from `status`.
+pub fn sample(api: &mut dyn Api) -> Result<([f64; 6], [f64; 6])> {
+    let st = checked(api, json!({"cmd": "status"}))?["status"].clone();
+    Ok((arr6(&st["q_motor"])?, arr6(&st["current"])?))
+}
+
+/// `pa10 collect …`
+#[derive(Debug, Subcommand)]
+pub enum CollectCmd {
+    /// Drive the daemon through a pose list (`config_id,load_n,q1..q6`, link-side rad) and
+    /// record resolver angles and currents per pose (`config_id,load_n,q1..q6,i1..i6`).
+    Run(RunArgs),
+    /// Merge recorded robot samples with the instrument's measurements
+    /// (`config_id,load_n,x,y,z,qw,qx,qy,qz`, instrument frame) by pose id into a dataset.
+    Merge(MergeArgs),
+}
+
+/// Arguments of `pa10 collect run`.
+#[derive(Debug, Args)]
+pub struct RunArgs {
+    #[command(flatten)]
+    conn: Conn,
+    /// The pose list.
+    #[arg(long, value_name = "FILE")]
+    poses: PathBuf,
+    /// Where to write the robot samples.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Samples per pose (measure the pose as many times with the instrument).
+    #[arg(long, default_value_t = 1)]
+    samples: usize,
+    /// Wait after a move or a load change before sampling, ms.
+    #[arg(long, default_value_t = 500)]
+    settle_ms: u64,
+    /// Do not ask for the weight to be changed when the load changes (it is changed by other
+    /// means, e.g. a simulator).
+    #[arg(long)]
+    yes: bool,
+}
+
+/// Arguments of `pa10 collect merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// Robot samples from `pa10 collect run`.
+    #[arg(long, value_name = "FILE")]
+    robot: PathBuf,
+    /// The instrument's measurements, one per robot sample, by pose id and load.
+    #[arg(long, value_name = "FILE")]
+    instrument: PathBuf,
+    /// The dataset to write (add a `.meta.yaml` sidecar with the tool: docs/calibration.md).
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+}
+
+fn read(p: &PathBuf) -> Result<String> {
+    std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))
+}
+
+/// `pa10 collect …`.
+pub fn run(c: &CollectCmd) -> Result<()> {
+    match c {
+        CollectCmd::Run(a) => collect_run(a),
+        CollectCmd::Merge(a) => {
+            let robot = collect::parse_robot(&read(&a.robot)?, &a.robot.display().to_string())?;
+            let inst = collect::parse_instrument(
+                &read(&a.instrument)?,
+                &a.instrument.display().to_string(),
+            )?;
+            let d = collect::merge(&robot, &inst)?;
+            d.save(&a.out)?;
+            println!("wrote {} ({} rows)", a.out.display(), d.rows.len());
+            Ok(())
+        }
+    }
+}
+
+fn collect_run(a: &RunArgs) -> Result<()> {
+    if a.samples == 0 || a.samples > 1000 {
+        bail!("--samples must be 1…1000, got {}", a.samples);
+    }
+    let poses = collect::parse_poses(&read(&a.poses)?, &a.poses.display().to_string())?;
+    let mut api = Socket(a.conn.clone());
+    let settle = Duration::from_millis(a.settle_ms);
+    let mut load = f64::NAN;
+    let mut out: Vec<RobotSample> = Vec::new();
+    let stdin = std::io::stdin();
+    for (k, p) in poses.iter().enumerate() {
+        if p.load_n != load {
+            checked(&mut api, json!({"cmd": "set_payload", "newtons": p.load_n}))?;
+            if !a.yes {
+                eprintln!("hang {} N at the tool, then press Enter", p.load_n);
+                let mut line = String::new();
+                stdin.lock().read_line(&mut line)?;
+            }
+            load = p.load_n;
+        }
+        move_wait(&mut api, json!({"cmd": "move_joints", "q": p.q}))
+            .with_context(|| format!("pose `{}`", p.config_id))?;
+        wait_still(&mut api, settle, settle * 4)?;
+        for _ in 0..a.samples {
+            let (q, current) = sample(&mut api)?;
+            out.push(RobotSample {
+                config_id: p.config_id.clone(),
+                load_n: p.load_n,
+                q,
+                current,
+            });
+            eprintln!(
+                "[{}/{}] {} at {} N: measure it with the instrument now",
+                k + 1,
+                poses.len(),
+                p.config_id,
+                p.load_n
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+    std::fs::write(&a.out, collect::robot_csv(&out))
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    println!(
+        "wrote {} ({} samples of {} poses); merge with the instrument's file: pa10 collect merge",
+        a.out.display(),
+        out.len(),
+        poses.len()
+    );
+    Ok(())
+}

@@ -1,0 +1,487 @@
+//! `pa10 demo`: the whole story on a simulated PA10, no hardware. Starts the daemon core on
+//! the simulated backend (virtual CAN bus, simulated servo controller with a hidden true
+//! robot), gathers the paper's calibration set through the daemon's API and the CAN
+//! protocol (the simulator's ground truth plays the CMM), calibrates, loads the models into
+//! the running daemon and commands novel poses under loads up to 90 N, judged by the truth.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
+use pa10::calib::dataset::{Dataset, Effort, Meta, Noise, Row};
+use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
+use pa10::daemon::config::Config;
+use pa10::daemon::runtime::Daemon;
+use pa10::model::{Frame, Model, NOMINAL_YAML, PoseData, pose_error, pose_parts};
+use pa10::sim::experiment::{CampaignSpec, grid_poses};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64;
+use serde::Serialize;
+use serde_json::json;
+
+use crate::collect_cmd::{Api, InProcess, checked, move_wait, sample, wait_still};
+
+/// Arguments of `pa10 demo`.
+#[derive(Debug, Args)]
+pub struct DemoArgs {
+    /// Seed of the hidden true robot, the validation poses and every noise.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Samples per calibration pose and load.
+    #[arg(long, default_value_t = 2)]
+    repeats: usize,
+    /// Novel validation poses.
+    #[arg(long, default_value_t = 4)]
+    validation_poses: usize,
+    /// A short run (8 calibration poses, 2 validation poses), for smoke tests.
+    #[arg(long)]
+    quick: bool,
+    /// Print one JSON object instead of the tables.
+    #[arg(long)]
+    json: bool,
+    /// Write the gathered dataset, the models and plots (SVG) into this directory.
+    #[arg(long, value_name = "DIR")]
+    report: Option<PathBuf>,
+}
+
+/// Errors of one model at one load.
+#[derive(Debug, Clone, Serialize)]
+struct Cell {
+    load_n: f64,
+    mean_mm: f64,
+    peak_mm: f64,
+    mean_orient_deg: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct Outcome {
+    seed: u64,
+    calibration_rows: usize,
+    calibration_poses: usize,
+    validation_poses: usize,
+    /// model name → per-load errors
+    models: Vec<(String, Vec<Cell>)>,
+    /// resolver floor per load: mean position error, mm
+    floor_mm: Vec<(f64, f64)>,
+    elapsed_s: f64,
+}
+
+const CAL_LOADS: [f64; 3] = [0.0, 22.0, 44.0];
+const VAL_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
+/// Least and most wait after a move or a load change before sampling (until the resolvers
+/// are still).
+const SETTLE_MIN: Duration = Duration::from_millis(80);
+const SETTLE_MAX: Duration = Duration::from_millis(400);
+
+fn config_text(dir: &Path, seed: u64) -> String {
+    include_str!("../../../config/sim.yaml")
+        .replace(
+            "socket: /tmp/pa10d-sim.sock",
+            &format!("socket: {}", dir.join("api.sock").display()),
+        )
+        .replace("  seed: 1", &format!("  seed: {seed}"))
+        // up to the PA10's rated joint speeds (S1, S2 57°/s, E1 114°/s, wrist 360°/s) and
+        // brisk accelerations, so that the 27 poses take well under a minute
+        .replace(
+            "speed: [0.5, 0.5, 1.0, 2.0, 2.0, 2.0]",
+            "speed: [1.0, 1.0, 2.0, 4.0, 4.0, 4.0]",
+        )
+        .replace(
+            "acceleration: [1.0, 1.0, 2.0, 4.0, 4.0, 4.0]",
+            "acceleration: [6.0, 6.0, 10.0, 16.0, 16.0, 16.0]",
+        )
+        // margins for a busy machine (the demo shares it with whatever else runs)
+        .replace("following_error: 0.01", "following_error: 0.05")
+        .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100")
+        .replace("log_level: info", "log_level: warn")
+}
+
+fn pose(p: [f64; 3], tilt_x: f64, tilt_y: f64, yaw: f64) -> Frame {
+    let down = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+    let r = UnitQuaternion::from_euler_angles(tilt_x, tilt_y, 0.0)
+        * down
+        * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
+    Frame::from_parts(Translation3::new(p[0], p[1], p[2]), r.to_rotation_matrix())
+}
+
+fn set_load(api: &mut dyn Api, sim: &pa10::sim::servo::SharedServo, n: f64) -> Result<()> {
+    sim.lock()
+        .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))?
+        .set_load(n);
+    checked(api, json!({"cmd": "set_payload", "newtons": n}))?;
+    Ok(())
+}
+
+/// `pa10 demo`.
+pub fn run(a: &DemoArgs) -> Result<()> {
+    anyhow::ensure!(
+        (1..=20).contains(&a.repeats),
+        "--repeats must be 1…20, got {}",
+        a.repeats
+    );
+    anyhow::ensure!(
+        (1..=30).contains(&a.validation_poses),
+        "--validation-poses must be 1…30, got {}",
+        a.validation_poses
+    );
+    let t0 = Instant::now();
+    let dir = std::env::temp_dir().join(format!("pa10-demo-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let result = demo(a, &dir, t0);
+    std::fs::remove_dir_all(&dir).ok();
+    result
+}
+
+fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
+    std::fs::write(dir.join("model-nominal.yaml"), NOMINAL_YAML)?;
+    let cfg_path = dir.join("pa10d.yaml");
+    std::fs::write(&cfg_path, config_text(dir, a.seed))?;
+    let loaded = Config::load(&cfg_path)?;
+    let kt = loaded.config.torque_constants;
+    let tool = CampaignSpec::default().tool;
+    let nominal = Model::nominal().with_tool(&tool)?;
+
+    // Snake through the grid (consecutive poses one grid step apart) so moves stay short.
+    let mut all = grid_poses();
+    all.sort_by_key(|(id, _)| {
+        let d: Vec<usize> = id[1..].chars().map(|c| c as usize - '0' as usize).collect();
+        let j = if d[0] % 2 == 1 { 2 - d[1] } else { d[1] };
+        let k = if (d[0] * 3 + j) % 2 == 1 {
+            2 - d[2]
+        } else {
+            d[2]
+        };
+        (d[0], j, k)
+    });
+    let cal_poses: Vec<(String, Frame)> = if a.quick {
+        all.into_iter()
+            .filter(|(id, _)| !id[1..].contains('1'))
+            .collect()
+    } else {
+        all
+    };
+    let n_val = if a.quick { 2 } else { a.validation_poses };
+    let steps = (cal_poses.len() * CAL_LOADS.len() + 3 * n_val * VAL_LOADS.len()) as u64;
+    let bar = if a.json {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(steps)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed:>3} [{bar:30}] {pos}/{len} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.set_message("starting pa10d on the simulated PA10");
+    let mut d = Daemon::start(&loaded)?;
+    let sim = d
+        .sim
+        .clone()
+        .context("the virtual backend runs a simulator")?;
+    let mut api = InProcess(d.shared.clone());
+    let mut rng = Pcg64::seed_from_u64(a.seed ^ 0xde70);
+    let truth = sim
+        .lock()
+        .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))?
+        .truth()
+        .clone();
+    let cmm = |sim: &pa10::sim::servo::SharedServo, rng: &mut Pcg64| -> Result<Frame> {
+        let s = sim
+            .lock()
+            .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))?;
+        Ok(truth.observe_pose(&s.true_tool_pose(), rng))
+    };
+
+    // 1. Gather the calibration set through the daemon.
+    let mut data = Dataset::default();
+    let mut reference = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0]; // the simulator's home
+    for (n, (id, target)) in cal_poses.iter().enumerate() {
+        // The joint solution nearest the previous configuration: no wrist flips.
+        let q = nominal
+            .ik_nearest(target, &reference)
+            .map_err(|e| anyhow::anyhow!("pose {id}: {e}"))?;
+        reference = q;
+        bar.set_message(format!("calibration pose {id}"));
+        move_wait(&mut api, json!({"cmd": "move_joints", "q": q}))
+            .with_context(|| format!("calibration pose {id}"))?;
+        // Loads up at one pose, down at the next: one load change fewer per pose.
+        let loads: Vec<f64> = if n % 2 == 0 {
+            CAL_LOADS.to_vec()
+        } else {
+            CAL_LOADS.iter().rev().copied().collect()
+        };
+        for load in loads {
+            set_load(&mut api, &sim, load)?;
+            wait_still(&mut api, SETTLE_MIN, SETTLE_MAX)?;
+            for _ in 0..a.repeats {
+                let (q_motor, current) = sample(&mut api)?;
+                data.rows.push(Row {
+                    config_id: id.clone(),
+                    load_n: load,
+                    q: q_motor,
+                    effort: Effort::Current(current),
+                    pose: cmm(&sim, &mut rng)?,
+                    direction: [0; 6],
+                    temperature_c: None,
+                    line: 0,
+                });
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            bar.inc(1);
+        }
+    }
+    let (t, qd) = pose_parts(&tool);
+    data.meta = Some(Meta {
+        instrument: Some(format!(
+            "simulator ground truth (pa10 demo, seed {})",
+            a.seed
+        )),
+        tool: Some(PoseData {
+            translation: t,
+            quaternion: qd,
+        }),
+        noise: Some(Noise {
+            position_m: truth.noise.position_m,
+            resolver_arcmin: truth.noise.resolver_rad / pa10::accuracy::ARCMIN,
+        }),
+        inner_configs: Some(
+            cal_poses
+                .iter()
+                .map(|(id, _)| id.clone())
+                .filter(|id| !id[1..].contains('1'))
+                .collect(),
+        ),
+    });
+
+    let t_gather = t0.elapsed().as_secs_f64();
+    // 2. Calibrate: full model, linear stiffness only, and the nominal model placed.
+    bar.set_message("calibrating");
+    let opts = CalibOptions {
+        torque_constants: Some(kt),
+        starts: 2,
+        seed: a.seed,
+        ..Default::default()
+    };
+    let full = calibrate(&nominal, &data, None, &opts, &|_| {})?.model;
+    let linear = calibrate(
+        &nominal,
+        &data,
+        None,
+        &CalibOptions {
+            linear_only: true,
+            ..opts.clone()
+        },
+        &|_| {},
+    )?
+    .model;
+    let placed = fit_base_only(&nominal, &data, None, &opts)?;
+
+    let t_calib = t0.elapsed().as_secs_f64();
+    // 3. Validation: novel poses (instrument frame), every model loaded into the daemon.
+    let mut targets: Vec<Frame> = Vec::new();
+    while targets.len() < n_val {
+        let p = [
+            rng.random_range(0.40..0.75),
+            rng.random_range(-0.25..0.25),
+            rng.random_range(-0.10..0.30),
+        ];
+        let t = pose(
+            p,
+            rng.random_range(-0.3..0.3),
+            rng.random_range(-0.3..0.3),
+            rng.random_range(-0.6..0.6),
+        );
+        let reference = [p[1].atan2(p[0]), 0.3, 1.6, 0.0, 1.2, 0.0];
+        if nominal.ik_nearest(&t, &reference).is_ok() {
+            targets.push(placed.base_from_instrument().inverse() * t);
+        }
+    }
+    let truth_base = *truth.model.base_from_instrument();
+    let named: [(&str, &Model); 3] = [
+        ("nominal", &placed),
+        ("linear stiffness", &linear),
+        ("full model", &full),
+    ];
+    let mut paths = Vec::new();
+    for (name, m) in &named {
+        let path = dir.join(format!("{}.yaml", name.replace(' ', "-")));
+        m.save(&path)?;
+        paths.push(path);
+    }
+    // errs[model][load] = (position mm, orientation deg) per pose
+    let mut errs = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
+    for (k, target) in targets.iter().enumerate() {
+        // At each pose every model in turn (a short move between them).
+        for (mi, (name, m)) in named.iter().enumerate() {
+            checked(&mut api, json!({"cmd": "load_model", "path": paths[mi]}))?;
+            let (p, q) = pose_parts(&(m.base_from_instrument() * target));
+            bar.set_message(format!("validation pose {} with the {name}", k + 1));
+            move_wait(
+                &mut api,
+                json!({"cmd": "move_pose", "position": p, "quaternion": q}),
+            )
+            .with_context(|| format!("validation pose {} with the {name}", k + 1))?;
+            // Loads up for one model, down for the next.
+            let order: Vec<usize> = if mi % 2 == 0 {
+                vec![0, 1, 2]
+            } else {
+                vec![2, 1, 0]
+            };
+            for l in order {
+                let load = VAL_LOADS[l];
+                set_load(&mut api, &sim, load)?;
+                wait_still(&mut api, SETTLE_MIN, SETTLE_MAX)?;
+                let got = {
+                    let s = sim
+                        .lock()
+                        .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))?;
+                    truth_base.inverse() * s.true_tool_pose()
+                };
+                let e = pose_error(target, &got);
+                errs[mi][l].push((
+                    e.fixed_rows::<3>(0).norm() * 1e3,
+                    e.fixed_rows::<3>(3).norm().to_degrees(),
+                ));
+                bar.inc(1);
+            }
+        }
+    }
+    let models: Vec<(String, Vec<Cell>)> = named
+        .iter()
+        .zip(&errs)
+        .map(|((name, _), per_load)| {
+            let cells = VAL_LOADS
+                .iter()
+                .zip(per_load)
+                .map(|(&load_n, v)| Cell {
+                    load_n,
+                    mean_mm: v.iter().map(|e| e.0).sum::<f64>() / v.len() as f64,
+                    peak_mm: v.iter().map(|e| e.0).fold(0.0, f64::max),
+                    mean_orient_deg: v.iter().map(|e| e.1).sum::<f64>() / v.len() as f64,
+                })
+                .collect();
+            (name.to_string(), cells)
+        })
+        .collect();
+    set_load(&mut api, &sim, 0.0)?;
+    d.shutdown();
+    let t_val = t0.elapsed().as_secs_f64();
+    tracing::debug!(t_gather, t_calib, t_val, "demo phases (s since start)");
+    if std::env::var_os("PA10_DEMO_TIMING").is_some() {
+        eprintln!(
+            "gathered at {t_gather:.1} s, calibrated at {t_calib:.1} s, validated at {t_val:.1} s"
+        );
+    }
+    bar.finish_and_clear();
+
+    // 4. The resolver floor at the validation poses (linearised; equals the Monte Carlo
+    //    bound to 0.1 %, docs/accuracy.md).
+    let sigma = [truth.noise.resolver_rad; 6];
+    let floor_mm: Vec<(f64, f64)> = VAL_LOADS
+        .iter()
+        .map(|&load| {
+            let mut s = 0.0;
+            for t in &targets {
+                let tb = full.base_from_instrument() * t;
+                let q = full
+                    .ik_nearest(&tb, &[0.0, 0.3, 1.6, 0.0, 1.2, 0.0])
+                    .unwrap_or([0.0; 6]);
+                let cov = pa10::accuracy::linear::position_covariance(&full, &q, &sigma);
+                s += pa10::accuracy::linear::norm_stats(&cov).mean * 1e3;
+            }
+            (load, s / targets.len() as f64)
+        })
+        .collect();
+
+    let out = Outcome {
+        seed: a.seed,
+        calibration_rows: data.rows.len(),
+        calibration_poses: cal_poses.len(),
+        validation_poses: targets.len(),
+        models,
+        floor_mm,
+        elapsed_s: t0.elapsed().as_secs_f64(),
+    };
+    if let Some(r) = &a.report {
+        report(r, &data, &placed, &linear, &full, &out)?;
+    }
+    if a.json {
+        println!("{}", serde_json::to_string(&out)?);
+    } else {
+        print(&out);
+    }
+    Ok(())
+}
+
+fn report(
+    dir: &Path,
+    data: &Dataset,
+    placed: &Model,
+    linear: &Model,
+    full: &Model,
+    out: &Outcome,
+) -> Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    data.save(dir.join("cal.csv"))?;
+    placed.save(dir.join("nominal-placed.yaml"))?;
+    linear.save(dir.join("linear.yaml"))?;
+    full.save(dir.join("calibrated.yaml"))?;
+    std::fs::write(dir.join("demo.json"), serde_json::to_string_pretty(out)?)?;
+    let series: Vec<(String, Vec<(f64, f64)>)> = out
+        .models
+        .iter()
+        .map(|(n, cells)| {
+            (
+                n.clone(),
+                cells.iter().map(|c| (c.load_n, c.mean_mm)).collect(),
+            )
+        })
+        .chain(std::iter::once((
+            "resolver floor".to_string(),
+            out.floor_mm.clone(),
+        )))
+        .collect();
+    pa10::plot::series(
+        &dir.join("validation.svg"),
+        "pa10 demo: mean position error on novel poses, through the daemon",
+        "load (N)",
+        "mean position error (mm)",
+        &series,
+    )?;
+    Ok(())
+}
+
+fn print(o: &Outcome) {
+    println!(
+        "pa10 demo (seed {}): {} calibration rows ({} poses × 0/22/44 N) gathered through pa10d, \
+         {} novel validation poses × 0/45/90 N, {:.0} s",
+        o.seed, o.calibration_rows, o.calibration_poses, o.validation_poses, o.elapsed_s
+    );
+    println!();
+    print!("{:>9}", "load [N]");
+    for (n, _) in &o.models {
+        print!("  {n:>27}");
+    }
+    println!("  {:>14}", "resolver floor");
+    print!("{:>9}", "");
+    for _ in &o.models {
+        print!("  {:>27}", "mean / peak mm, mean deg");
+    }
+    println!("  {:>14}", "mean mm");
+    for (l, (load, floor)) in o.floor_mm.iter().enumerate() {
+        print!("{load:>9.0}");
+        for (_, cells) in &o.models {
+            let c = &cells[l];
+            print!(
+                "  {:>9.3} / {:>6.3}, {:>6.4}",
+                c.mean_mm, c.peak_mm, c.mean_orient_deg
+            );
+        }
+        println!("  {floor:>14.3}");
+    }
+    println!(
+        "\nErrors are the simulator's ground truth: where the tool really went vs where it was sent."
+    );
+}
