@@ -207,7 +207,12 @@ pub async fn serve(
                 let resp = span.in_scope(|| {
                     let r = handle(&shared, &line);
                     if r["ok"] == true {
-                        tracing::info!("done");
+                        // status is polled (often at 100 Hz): keep it out of the journal
+                        if cmd == "status" {
+                            tracing::debug!("done");
+                        } else {
+                            tracing::info!("done");
+                        }
                     } else {
                         tracing::warn!(error = %r["error"], "refused");
                     }
