@@ -100,6 +100,8 @@ pub struct ServoSim {
     now: f64,
     motor: [f64; 6],
     speed: [f64; 6],
+    /// Direction each motor last moved in (−1, 0, +1): the side of any backlash.
+    dir: [f64; 6],
     target: [f64; 6],
     load_n: f64,
     pending: [Option<Command>; 6],
@@ -110,6 +112,9 @@ pub struct ServoSim {
     deadman: bool,
     rng: Pcg64,
 }
+
+/// Motor speed above which a motion counts as an approach direction, rad/s.
+const BACKLASH_SPEED: f64 = 2e-3;
 
 fn gauss(rng: &mut Pcg64) -> f64 {
     StandardNormal.sample(rng)
@@ -129,6 +134,7 @@ impl ServoSim {
             now: 0.0,
             motor: q0,
             speed: [0.0; 6],
+            dir: [0.0; 6],
             target: [0.0; 6],
             load_n: 0.0,
             pending: [None; 6],
@@ -166,7 +172,7 @@ impl ServoSim {
     pub fn link_state(&self) -> ([f64; 6], [f64; 6]) {
         let m = &self.truth.model;
         let load = ExternalLoad::hung(self.load_n, &m.gravity());
-        m.link_from_motor_static(&self.motor, &load)
+        m.link_from_motor_static_dir(&self.motor, &load, &self.dir)
             .unwrap_or((self.motor, [0.0; 6]))
     }
 
@@ -242,6 +248,11 @@ impl ServoSim {
                 let lim = self.cfg.speed_limit[j];
                 self.speed[j] = v.clamp(-lim, lim);
                 self.motor[j] += self.speed[j] * dt;
+                // A deliberate motion (not the position loop's dither at rest) takes up the
+                // backlash on its side.
+                if self.speed[j].abs() > BACKLASH_SPEED {
+                    self.dir[j] = self.speed[j].signum();
+                }
             }
             t += dt;
         }
