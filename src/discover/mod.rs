@@ -927,53 +927,32 @@ pub fn discover(
                     drop += hv * hv / ev;
                 }
             }
-            let label = e.label();
+            let mut score = Score {
+                label: e.label(),
+                name: e.kind.name(),
+                joint: e.joint(),
+                params: k,
+                identifiable: ident,
+                delta_chi2: 0.0,
+                delta_bic: f64::NEG_INFINITY,
+                p_adjusted: 1.0,
+                heldout_gain: None,
+                paired_t: None,
+                sign_p: None,
+                heldout_gap_mm: None,
+                passed: false,
+                note: String::new(),
+            };
             if ident == 0 {
                 if steps.is_empty() {
-                    not_identifiable.push(label.clone());
+                    not_identifiable.push(score.label.clone());
                 }
-                scores.push((
-                    Score {
-                        label,
-                        name: e.kind.name(),
-                        joint: e.joint(),
-                        params: k,
-                        identifiable: 0,
-                        delta_chi2: 0.0,
-                        delta_bic: f64::NEG_INFINITY,
-                        p_adjusted: 1.0,
-                        heldout_gain: None,
-                        paired_t: None,
-                        sign_p: None,
-                        heldout_gap_mm: None,
-                        passed: false,
-                        note: "not identifiable: the current model absorbs it on these poses"
-                            .into(),
-                    },
-                    ci,
-                ));
-                continue;
+                score.note = "not identifiable: the current model absorbs it on these poses".into();
+            } else {
+                score.delta_chi2 = drop / dispersion;
+                score.delta_bic = score.delta_chi2 - ident as f64 * ln_n;
             }
-            let stat = drop / dispersion;
-            scores.push((
-                Score {
-                    label,
-                    name: e.kind.name(),
-                    joint: e.joint(),
-                    params: k,
-                    identifiable: ident,
-                    delta_chi2: stat,
-                    delta_bic: stat - ident as f64 * ln_n,
-                    p_adjusted: 1.0,
-                    heldout_gain: None,
-                    paired_t: None,
-                    sign_p: None,
-                    heldout_gap_mm: None,
-                    passed: false,
-                    note: String::new(),
-                },
-                ci,
-            ));
+            scores.push((score, ci));
         }
         let m = scores
             .iter()

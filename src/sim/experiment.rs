@@ -87,7 +87,9 @@ pub enum CampaignError {
     Invalid(String),
 }
 
-fn pose(p: [f64; 3], tilt_x: f64, tilt_y: f64, yaw: f64) -> Frame {
+/// A tool pose at `p` (m, robot base frame) pointing down, tilted about x and y and turned
+/// about the tool axis by `yaw` (rad): the campaigns' pose family.
+pub fn pose(p: [f64; 3], tilt_x: f64, tilt_y: f64, yaw: f64) -> Frame {
     let down = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
     let r = UnitQuaternion::from_euler_angles(tilt_x, tilt_y, 0.0)
         * down
@@ -120,6 +122,23 @@ pub fn grid_poses() -> Vec<(String, Frame)> {
         }
     }
     out
+}
+
+/// The sidecar of a simulated campaign: the instrument's name, the tool, the noise levels.
+pub fn sidecar(instrument: String, tool: &Frame, noise: &SimNoise) -> Meta {
+    let (translation, quaternion) = crate::model::pose_parts(tool);
+    Meta {
+        instrument: Some(instrument),
+        tool: Some(PoseData {
+            translation,
+            quaternion,
+        }),
+        noise: Some(Noise {
+            position_m: noise.position_m,
+            resolver_arcmin: noise.resolver_rad / crate::accuracy::ARCMIN,
+        }),
+        inner_configs: None,
+    }
 }
 
 /// Generates the whole campaign for `spec`.
@@ -169,19 +188,12 @@ pub fn paper_campaign(spec: &CampaignSpec) -> Result<Campaign, CampaignError> {
         .filter(|id| !id[1..].contains('1'))
         .collect();
     let meta = Meta {
-        instrument: Some(format!(
-            "simulated CMM (pa10 sim measure, seed {})",
-            spec.seed
-        )),
-        tool: Some(PoseData {
-            translation: crate::model::pose_parts(&spec.tool).0,
-            quaternion: crate::model::pose_parts(&spec.tool).1,
-        }),
-        noise: Some(Noise {
-            position_m: spec.noise.position_m,
-            resolver_arcmin: spec.noise.resolver_rad / crate::accuracy::ARCMIN,
-        }),
         inner_configs: Some(corners),
+        ..sidecar(
+            format!("simulated CMM (pa10 sim measure, seed {})", spec.seed),
+            &spec.tool,
+            &spec.noise,
+        )
     };
     cal.meta = Some(meta.clone());
 
@@ -378,21 +390,11 @@ pub fn discovery_campaign(spec: &DiscoverySpec) -> Result<DiscoveryCampaign, Cam
             }
         }
     }
-    data.meta = Some(Meta {
-        instrument: Some(format!(
-            "simulated CMM (discovery campaign, seed {})",
-            spec.seed
-        )),
-        tool: Some(PoseData {
-            translation: crate::model::pose_parts(&spec.tool).0,
-            quaternion: crate::model::pose_parts(&spec.tool).1,
-        }),
-        noise: Some(Noise {
-            position_m: spec.noise.position_m,
-            resolver_arcmin: spec.noise.resolver_rad / crate::accuracy::ARCMIN,
-        }),
-        inner_configs: None,
-    });
+    data.meta = Some(sidecar(
+        format!("simulated CMM (discovery campaign, seed {})", spec.seed),
+        &spec.tool,
+        &spec.noise,
+    ));
     Ok(DiscoveryCampaign { data, truth })
 }
 

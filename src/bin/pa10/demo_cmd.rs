@@ -10,13 +10,12 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use nalgebra::{Translation3, UnitQuaternion, Vector3};
-use pa10::calib::dataset::{Dataset, Effort, Meta, Noise, Row};
+use pa10::calib::dataset::{Dataset, Effort, Meta, Row};
 use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
 use pa10::daemon::config::Config;
 use pa10::daemon::runtime::Daemon;
-use pa10::model::{Frame, Model, NOMINAL_YAML, PoseData, pose_error, pose_parts};
-use pa10::sim::experiment::{CampaignSpec, grid_poses};
+use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
+use pa10::sim::experiment::{CampaignSpec, grid_poses, pose, sidecar};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::Serialize;
@@ -97,14 +96,6 @@ fn config_text(dir: &Path, seed: u64) -> String {
         .replace("following_error: 0.01", "following_error: 0.05")
         .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100")
         .replace("log_level: info", "log_level: warn")
-}
-
-fn pose(p: [f64; 3], tilt_x: f64, tilt_y: f64, yaw: f64) -> Frame {
-    let down = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
-    let r = UnitQuaternion::from_euler_angles(tilt_x, tilt_y, 0.0)
-        * down
-        * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw);
-    Frame::from_parts(Translation3::new(p[0], p[1], p[2]), r.to_rotation_matrix())
 }
 
 fn set_load(api: &mut dyn Api, sim: &pa10::sim::servo::SharedServo, n: f64) -> Result<()> {
@@ -232,20 +223,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
             bar.inc(1);
         }
     }
-    let (t, qd) = pose_parts(&tool);
     data.meta = Some(Meta {
-        instrument: Some(format!(
-            "simulator ground truth (pa10 demo, seed {})",
-            a.seed
-        )),
-        tool: Some(PoseData {
-            translation: t,
-            quaternion: qd,
-        }),
-        noise: Some(Noise {
-            position_m: truth.noise.position_m,
-            resolver_arcmin: truth.noise.resolver_rad / pa10::accuracy::ARCMIN,
-        }),
         inner_configs: Some(
             cal_poses
                 .iter()
@@ -253,8 +231,12 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
                 .filter(|id| !id[1..].contains('1'))
                 .collect(),
         ),
+        ..sidecar(
+            format!("simulator ground truth (pa10 demo, seed {})", a.seed),
+            &tool,
+            &truth.noise,
+        )
     });
-
     let t_gather = t0.elapsed().as_secs_f64();
     // 2. Calibrate: full model, linear stiffness only, and the nominal model placed.
     bar.set_message("calibrating");
