@@ -8,6 +8,11 @@
 //!   joint stiffness), forward and inverse kinematics, Jacobians, static joint
 //!   torques and the per-cycle compensation `q_motor = q_link + δ(τ)`. Plain
 //!   functions on plain data: no IO, no clocks, no allocation on the hot path.
+//! - [`accuracy`]: the resolver-uncertainty bound (Monte Carlo and linearised).
+//! - [`calib`]: datasets, the two-level calibration, gathering through the daemon.
+//! - [`discover`]: is anything missing from the model, what, and does adding it help.
+//! - [`sim`]: the simulated PA10 (hidden truth, servo controller, campaigns).
+//! - [`can`] and [`daemon`]: the protocol, buses and the control daemon's core.
 //!
 //! Units are SI throughout: metres, radians, newtons, newton-metres, seconds.
 //! Joint vectors are `[f64; 6]` ordered J1 … J6 (S1, S2, E1, E2, W1, W2).
