@@ -219,6 +219,13 @@ fn run(name: &str, seed: u64) -> Discovery {
     .unwrap();
     let labels: Vec<&str> = d.effects.iter().map(|e| e.label.as_str()).collect();
     assert_eq!(labels, sc.expect, "{name} seed {seed}: {:#?}", d.steps);
+    // every effect named won the bootstrap by configuration
+    for s in &d.steps {
+        if let Some(a) = &s.accepted {
+            let c = s.candidates.iter().find(|c| &c.label == a).unwrap();
+            assert!(c.stability.unwrap() >= 0.8, "{a}: {:?}", c.stability);
+        }
+    }
     assert_eq!(d.significant_gap_before, !sc.expect.is_empty(), "{name}");
     assert!(
         d.gap_after_mm <= 1.5 * d.noise_floor_mm,

@@ -8,9 +8,10 @@
 //! already absorb (what is left is the only evidence; a block with nothing left is *not
 //! identifiable* and is reported, never picked), scored by the linearised drop in cost,
 //! a likelihood-ratio test with a Bonferroni correction, ΔBIC, and held-out data by
-//! configuration (a holdout file, else k-fold cross-validation) with a paired t-test over
-//! the held-out configurations. The best candidate that passes every test is added and the
-//! model refitted (Levenberg–Marquardt); this repeats until nothing passes, the gap is at
+//! configuration (a holdout file, else k-fold cross-validation) with a paired t-test or a
+//! sign test over the held-out configurations, and a bootstrap by configuration (it must be
+//! the best candidate in 80 % of resamples). The best candidate that passes every test is
+//! added and the model refitted (Levenberg–Marquardt); this repeats until nothing passes, the gap is at
 //! the noise floor, or the effect budget is spent.
 //!
 //! Plain functions on plain data: no IO. The `pa10 discover` command wraps it.
@@ -189,6 +190,9 @@ pub struct Score {
     pub sign_p: Option<f64>,
     /// Held-out RMS position error with the effect, mm, when evaluated.
     pub heldout_gap_mm: Option<f64>,
+    /// Share of bootstrap resamples by configuration in which it is the best candidate,
+    /// when evaluated (named only at ≥ 0.8).
+    pub stability: Option<f64>,
     /// Whether it passed every test.
     pub passed: bool,
     /// Why it failed, or "not identifiable …".
@@ -675,6 +679,95 @@ fn lack_of_fit(p: &Problem, lin: &Lin) -> LackOfFit {
     }
 }
 
+/// The linearised drop of the whitened cost when the columns `r` join the first `nb` (whose
+/// normal matrix inverse is `a_bb_inv`), counted over the directions with more than
+/// [`IDENT_CUT`] of their column left after projecting out the first `nb`: (those
+/// directions, the drop).
+fn projected_drop(
+    a: &DMatrix<f64>,
+    g: &DVector<f64>,
+    a_bb_inv: &DMatrix<f64>,
+    g_b: &DVector<f64>,
+    r: std::ops::Range<usize>,
+) -> (usize, f64) {
+    let (nb, k) = (a_bb_inv.nrows(), r.len());
+    let a_cb = a.view((r.start, 0), (k, nb)).into_owned();
+    let a_cc = a.view((r.start, r.start), (k, k)).into_owned();
+    let schur = &a_cc - &a_cb * a_bb_inv * a_cb.transpose();
+    let h = g.rows(r.start, k).into_owned() - &a_cb * (a_bb_inv * g_b);
+    // Identifiable part: eigen-directions of the normalised Schur complement.
+    let dn = DVector::from_fn(k, |i, _| {
+        let v = a_cc[(i, i)];
+        if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 }
+    });
+    let sn = DMatrix::from_fn(k, k, |i, j| schur[(i, j)] * dn[i] * dn[j]);
+    let eig = nalgebra::SymmetricEigen::new(sn);
+    let (mut ident, mut drop) = (0, 0.0);
+    for (i, &ev) in eig.eigenvalues.iter().enumerate() {
+        if ev > IDENT_CUT {
+            ident += 1;
+            let v = eig.eigenvectors.column(i);
+            let hv: f64 = (0..k).map(|t| v[t] * dn[t] * h[t]).sum();
+            drop += hv * hv / ev;
+        }
+    }
+    (ident, drop)
+}
+
+/// Resamples for the stability check.
+const BOOTSTRAP: usize = 100;
+/// Least share of resamples in which a named effect must win.
+const STABLE: f64 = 0.8;
+
+/// Share of bootstrap resamples by configuration (multiplicities drawn with `rng`, applied
+/// to each training block's normal equations `blocks`) in which candidate `pick` has the
+/// largest ΔBIC among `ranges`.
+fn stability(
+    blocks: &[(DMatrix<f64>, DVector<f64>)],
+    nb: usize,
+    ranges: &[std::ops::Range<usize>],
+    pick: usize,
+    dispersion: f64,
+    ln_n: f64,
+    rng: &mut Pcg64,
+) -> f64 {
+    use rand::RngExt;
+    let n = blocks.len();
+    let mut wins = 0;
+    for _ in 0..BOOTSTRAP {
+        let mut mult = vec![0.0; n];
+        for _ in 0..n {
+            mult[rng.random_range(0..n)] += 1.0;
+        }
+        let mut a = blocks[0].0.clone() * 0.0;
+        let mut g = blocks[0].1.clone() * 0.0;
+        for ((ab, gb), m) in blocks.iter().zip(&mult) {
+            if *m > 0.0 {
+                a += ab * *m;
+                g += gb * *m;
+            }
+        }
+        let a_bb_inv = fit::pinv(&a.view((0, 0), (nb, nb)).into_owned());
+        let g_b = g.rows(0, nb).into_owned();
+        let best = ranges
+            .iter()
+            .enumerate()
+            .map(|(ci, r)| {
+                let (ident, drop) = projected_drop(&a, &g, &a_bb_inv, &g_b, r.clone());
+                let bic = if ident == 0 {
+                    f64::NEG_INFINITY
+                } else {
+                    drop / dispersion - ident as f64 * ln_n
+                };
+                (ci, bic)
+            })
+            .max_by(|x, y| x.1.total_cmp(&y.1))
+            .map(|x| x.0);
+        wins += usize::from(best == Some(pick));
+    }
+    wins as f64 / BOOTSTRAP as f64
+}
+
 /// Normal equations of every fold's blocks (all columns).
 struct FoldEqs {
     a: Vec<DMatrix<f64>>,
@@ -906,27 +999,7 @@ pub fn discover(
         for (ci, e) in cands.iter().enumerate() {
             let r = ranges[ci].clone();
             let k = r.len();
-            let a_cb = a.view((r.start, 0), (k, nb)).into_owned();
-            let a_cc = a.view((r.start, r.start), (k, k)).into_owned();
-            let schur = &a_cc - &a_cb * &a_bb_inv * a_cb.transpose();
-            let h = g.rows(r.start, k).into_owned() - &a_cb * (&a_bb_inv * &g_b);
-            // Identifiable part: eigen-directions of the normalised Schur complement.
-            let dn = DVector::from_fn(k, |i, _| {
-                let v = a_cc[(i, i)];
-                if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 }
-            });
-            let sn = DMatrix::from_fn(k, k, |i, j| schur[(i, j)] * dn[i] * dn[j]);
-            let eig = nalgebra::SymmetricEigen::new(sn);
-            let mut ident = 0;
-            let mut drop = 0.0;
-            for (i, &ev) in eig.eigenvalues.iter().enumerate() {
-                if ev > IDENT_CUT {
-                    ident += 1;
-                    let v = eig.eigenvectors.column(i);
-                    let hv: f64 = (0..k).map(|t| v[t] * dn[t] * h[t]).sum();
-                    drop += hv * hv / ev;
-                }
-            }
+            let (ident, drop) = projected_drop(a, g, &a_bb_inv, &g_b, r);
             let mut score = Score {
                 label: e.label(),
                 name: e.kind.name(),
@@ -940,6 +1013,7 @@ pub fn discover(
                 paired_t: None,
                 sign_p: None,
                 heldout_gap_mm: None,
+                stability: None,
                 passed: false,
                 note: String::new(),
             };
@@ -968,6 +1042,7 @@ pub fn discover(
         scores.sort_by(|a, b| b.0.delta_bic.total_cmp(&a.0.delta_bic));
         let (base_costs, _) = heldout(&prob, &lin, &eqs, &lay.folds, &(0..nb).collect::<Vec<_>>());
         let mut accepted: Option<usize> = None;
+        let mut block_eqs: Option<Vec<(DMatrix<f64>, DVector<f64>)>> = None;
         for (s, ci) in &mut scores {
             if s.identifiable == 0 {
                 continue;
@@ -1009,9 +1084,32 @@ pub fn discover(
             s.sign_p = Some(sign_p);
             s.heldout_gap_mm = Some(gap_c);
             if t > t_crit || sign_p < 0.5 * opts.alpha {
-                s.passed = true;
-                s.note = "accepted".into();
-                accepted = Some(*ci);
+                // Would another configuration sample have named the same effect?
+                let blocks = block_eqs.get_or_insert_with(|| {
+                    let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
+                    prob.blocks
+                        .iter()
+                        .filter(|b| b.train)
+                        .map(|b| {
+                            let rows: Vec<usize> =
+                                (b.offset..b.offset + 6 * (b.rows.len() + 1)).collect();
+                            fit::normal_eq(&lin, &rows, &cols)
+                        })
+                        .collect()
+                });
+                let mut rng = Pcg64::seed_from_u64(opts.seed ^ 0xb007 ^ steps.len() as u64);
+                let st = stability(blocks, nb, &ranges, *ci, dispersion, ln_n, &mut rng);
+                s.stability = Some(st);
+                if st >= STABLE {
+                    s.passed = true;
+                    s.note = format!("accepted (best in {:.0} % of resamples)", 100.0 * st);
+                    accepted = Some(*ci);
+                } else {
+                    s.note = format!(
+                        "uncertain: best in only {:.0} % of {BOOTSTRAP} bootstrap resamples by configuration",
+                        100.0 * st
+                    );
+                }
             } else {
                 s.note = format!(
                     "held-out gain not significant: paired t = {t:.2} ≤ {t_crit:.2}, {better} of {n} held-out configurations better (sign-test p = {sign_p:.1e})"
