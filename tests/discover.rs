@@ -258,6 +258,11 @@ fn hidden_cubic_stiffness_on_j2_is_named_from_a_linear_only_model() {
 #[test]
 fn hidden_compliance_on_j4_is_named_and_its_spring_estimated() {
     let d = run("compliance-j4", 12);
+    assert!(
+        d.steps[0].look_alikes.is_empty(),
+        "{:?}",
+        d.steps[0].look_alikes
+    );
     let c = d.effects[0].params["compliance"];
     assert!((c - 2.5e-4).abs() < 0.02 * 2.5e-4, "{c}");
     assert_eq!(d.effects[0].joint, Some(4));
@@ -270,6 +275,15 @@ fn hidden_compliance_on_j4_is_named_and_its_spring_estimated() {
 #[test]
 fn hidden_transmission_error_on_j3_is_named() {
     let d = run("transmission-j3", 13);
+    // the eccentricity is its first harmonic: reported as a look-alike
+    assert!(
+        d.steps[0]
+            .look_alikes
+            .iter()
+            .any(|(n, r)| n == "encoder_eccentricity[J3]" && *r > 0.99),
+        "{:?}",
+        d.steps[0].look_alikes
+    );
     let p = &d.effects[0].params;
     assert!((p["wave1_sin"] - 4e-4).abs() < 1e-4, "{p:?}");
     assert!(d.model.data().joint_errors[2].is_some());

@@ -214,6 +214,10 @@ pub struct Step {
     pub candidates: Vec<Score>,
     /// The label of the effect added, if any.
     pub accepted: Option<String>,
+    /// Other candidates whose columns, beyond the current model, are nearly parallel to the
+    /// accepted one's on these poses (largest canonical correlation ≥ 0.9): what the data
+    /// barely tell apart from it, with that correlation.
+    pub look_alikes: Vec<(String, f64)>,
 }
 
 /// An effect found and added.
@@ -714,6 +718,32 @@ fn projected_drop(
     (ident, drop)
 }
 
+/// The largest canonical correlation between the column blocks `r1` and `r2` of the normal
+/// matrix `a` after both are projected off the first `nb` columns (`a_bb_inv` their
+/// inverse): 1 when some combination of one block is a combination of the other.
+fn canonical_correlation(
+    a: &DMatrix<f64>,
+    a_bb_inv: &DMatrix<f64>,
+    r1: std::ops::Range<usize>,
+    r2: std::ops::Range<usize>,
+) -> f64 {
+    let nb = a_bb_inv.nrows();
+    let proj = |x: &std::ops::Range<usize>, y: &std::ops::Range<usize>| {
+        let axy = a.view((x.start, y.start), (x.len(), y.len())).into_owned();
+        let axb = a.view((x.start, 0), (x.len(), nb)).into_owned();
+        let aby = a.view((0, y.start), (nb, y.len())).into_owned();
+        axy - axb * a_bb_inv * aby
+    };
+    let (s11, s22, s12) = (proj(&r1, &r1), proj(&r2, &r2), proj(&r1, &r2));
+    let m = fit::pinv(&s11) * &s12 * fit::pinv(&s22) * s12.transpose();
+    let ev = m.complex_eigenvalues();
+    ev.iter()
+        .map(|c| c.re)
+        .fold(0.0, f64::max)
+        .clamp(0.0, 1.0)
+        .sqrt()
+}
+
 /// Resamples for the stability check.
 const BOOTSTRAP: usize = 100;
 /// Least share of resamples in which a named effect must win.
@@ -1116,6 +1146,21 @@ pub fn discover(
                 );
             }
         }
+        let look_alikes = match accepted {
+            None => Vec::new(),
+            Some(pick) => (0..cands.len())
+                .filter(|&ci| ci != pick)
+                .filter_map(|ci| {
+                    let r = canonical_correlation(
+                        a,
+                        &a_bb_inv,
+                        ranges[pick].clone(),
+                        ranges[ci].clone(),
+                    );
+                    (r >= 0.9).then(|| (cands[ci].label(), r))
+                })
+                .collect(),
+        };
         let step = Step {
             step: steps.len() + 1,
             gap_train_mm: train_rms_mm(&prob, &cur.lin.raw),
@@ -1123,6 +1168,7 @@ pub fn discover(
             lack_of_fit: lof,
             candidates: scores.into_iter().map(|(s, _)| s).collect(),
             accepted: accepted.map(|ci| cands[ci].label()),
+            look_alikes,
         };
         steps.push(step);
         let Some(ci) = accepted else { break };

@@ -192,6 +192,20 @@ fn print(d: &Discovery, out: Option<&Path>) {
             );
         }
     }
+    for s in &d.steps {
+        if let (Some(a), false) = (&s.accepted, s.look_alikes.is_empty()) {
+            let l: Vec<String> = s
+                .look_alikes
+                .iter()
+                .map(|(n, r)| format!("{n} (r = {r:.3})"))
+                .collect();
+            println!(
+                "\nstep {}: on these poses {a} shares a direction with {} (r: largest canonical correlation beyond the model); the data cannot tell those parts apart (docs/discovery.md)",
+                s.step,
+                l.join(", ")
+            );
+        }
+    }
     if !d.not_identifiable.is_empty() {
         println!(
             "\nnot identifiable from these poses (absorbed by the model): {}",
