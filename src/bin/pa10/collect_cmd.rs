@@ -81,7 +81,8 @@ pub fn move_wait(api: &mut dyn Api, req: Value) -> Result<()> {
     Ok(())
 }
 
-fn arr6(v: &Value) -> Result<[f64; 6]> {
+/// Six numbers from a JSON array.
+pub fn arr6(v: &Value) -> Result<[f64; 6]> {
     let a = v
         .as_array()
         .filter(|a| a.len() == 6)
