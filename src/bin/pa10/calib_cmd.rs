@@ -327,8 +327,20 @@ pub struct CalibrateArgs {
     json: bool,
 }
 
-fn load(p: &Path) -> Result<Dataset> {
+/// Loads a dataset (and its sidecar), naming the file in errors.
+pub(crate) fn load(p: &Path) -> Result<Dataset> {
     Dataset::load(p).with_context(|| format!("loading {}", p.display()))
+}
+
+/// `--torque-constants` as six values, N·m/A.
+pub(crate) fn torque_constants(v: &Option<Vec<f64>>) -> Result<Option<[f64; 6]>> {
+    v.as_ref()
+        .map(|v| {
+            <[f64; 6]>::try_from(v.as_slice()).map_err(|_| {
+                anyhow::anyhow!("--torque-constants takes six values, got {}", v.len())
+            })
+        })
+        .transpose()
 }
 
 /// `pa10 calibrate`.
@@ -353,12 +365,7 @@ pub fn calibrate(a: &CalibrateArgs) -> Result<()> {
         }
         Some(list) => Some(list.split(',').map(|s| s.trim().to_string()).collect()),
     };
-    let torque_constants = match &a.torque_constants {
-        None => None,
-        Some(v) => Some(<[f64; 6]>::try_from(v.as_slice()).map_err(|_| {
-            anyhow::anyhow!("--torque-constants takes six values, got {}", v.len())
-        })?),
-    };
+    let torque_constants = torque_constants(&a.torque_constants)?;
     let opts = CalibOptions {
         epsilon: a.epsilon,
         linear_only: a.linear_only,

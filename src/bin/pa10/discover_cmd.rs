@@ -4,11 +4,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use pa10::calib::dataset::Dataset;
 use pa10::discover::effects::Kind;
 use pa10::discover::{DiscoverOptions, Discovery, discover};
 use pa10::sim::experiment::{DiscoverySpec, discovery_campaign, paper_model, scenarios};
 
+use crate::calib_cmd::load;
 use crate::model_cmds::ModelArg;
 
 /// Arguments of `pa10 discover`.
@@ -57,21 +57,12 @@ pub struct DiscoverArgs {
     only: Option<Vec<String>>,
 }
 
-fn load(p: &Path) -> Result<Dataset> {
-    Dataset::load(p).with_context(|| format!("loading {}", p.display()))
-}
-
 /// `pa10 discover`.
 pub fn run(a: &DiscoverArgs) -> Result<()> {
     let model = a.model.load()?;
     let data = load(&a.data)?;
     let holdout = a.holdout.as_deref().map(load).transpose()?;
-    let torque_constants = match &a.torque_constants {
-        None => None,
-        Some(v) => Some(<[f64; 6]>::try_from(v.as_slice()).map_err(|_| {
-            anyhow::anyhow!("--torque-constants takes six values, got {}", v.len())
-        })?),
-    };
+    let torque_constants = crate::calib_cmd::torque_constants(&a.torque_constants)?;
     let only = match &a.only {
         None => None,
         Some(names) => Some(
