@@ -5,10 +5,12 @@
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::net::UnixStream;
 use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
+use pa10::daemon::runtime::Shared;
 use serde_json::{Value, json};
 
 /// Where the daemon listens.
@@ -56,7 +58,7 @@ pub enum MoveCmd {
     },
 }
 
-pub(crate) fn send(c: &Conn, req: &Value) -> Result<Value> {
+fn send(c: &Conn, req: &Value) -> Result<Value> {
     let mut s = UnixStream::connect(&c.socket).with_context(|| {
         format!(
             "connecting to pa10d at {} (is it running?)",
@@ -72,8 +74,33 @@ pub(crate) fn send(c: &Conn, req: &Value) -> Result<Value> {
     serde_json::from_str(&line).context("the daemon's answer is not JSON")
 }
 
-fn checked(c: &Conn, req: Value) -> Result<Value> {
-    let v = send(c, &req)?;
+/// A way to send the daemon one JSON request and get its answer.
+pub trait Api {
+    /// Sends `req`, returns the daemon's answer (any `ok`).
+    fn call(&mut self, req: Value) -> Result<Value>;
+}
+
+/// The daemon behind its Unix socket.
+pub struct Socket(pub Conn);
+
+impl Api for Socket {
+    fn call(&mut self, req: Value) -> Result<Value> {
+        send(&self.0, &req)
+    }
+}
+
+/// A daemon running in this process (the demo): the same request handler as the socket's.
+pub struct InProcess(pub Arc<Mutex<Shared>>);
+
+impl Api for InProcess {
+    fn call(&mut self, req: Value) -> Result<Value> {
+        Ok(pa10::daemon::api::handle(&self.0, &req.to_string()))
+    }
+}
+
+/// Sends `req`; a refusal is an error with the daemon's reason.
+pub fn checked(api: &mut dyn Api, req: Value) -> Result<Value> {
+    let v = api.call(req)?;
     if v["ok"] != true {
         bail!(
             "pa10d refused: {}",
@@ -108,22 +135,24 @@ fn print_status(c: &Conn, v: &Value) {
 
 /// `pa10 status`.
 pub fn status(c: &Conn) -> Result<()> {
-    let v = checked(c, json!({"cmd": "status"}))?;
+    let v = checked(&mut Socket(c.clone()), json!({"cmd": "status"}))?;
     print_status(c, &v);
     Ok(())
 }
 
-fn wait_settled(c: &Conn, timeout: Duration) -> Result<Value> {
+/// Polls `status` until the arm holds; returns that answer. A fault, or no rest within
+/// `timeout`, is an error.
+pub fn wait_settled(api: &mut dyn Api, timeout: Duration) -> Result<Value> {
     let end = Instant::now() + timeout;
     loop {
-        let v = checked(c, json!({"cmd": "status"}))?;
+        let v = checked(api, json!({"cmd": "status"}))?;
         match v["status"]["state"].as_str() {
             Some("holding") => return Ok(v),
             Some("fault") => bail!("the move ended in a fault: {}", v["status"]["fault"]),
             _ if Instant::now() > end => {
                 bail!("the move did not settle within {} s", timeout.as_secs())
             }
-            _ => std::thread::sleep(Duration::from_millis(20)),
+            _ => std::thread::sleep(Duration::from_millis(10)),
         }
     }
 }
@@ -143,7 +172,8 @@ pub fn move_cmd(c: &Conn, m: &MoveCmd) -> Result<()> {
             *wait,
         ),
     };
-    let v = checked(c, req)?;
+    let api = &mut Socket(c.clone());
+    let v = checked(api, req)?;
     let d = v["duration_s"].as_f64().unwrap_or(0.0);
     if !wait {
         if c.json {
@@ -153,14 +183,14 @@ pub fn move_cmd(c: &Conn, m: &MoveCmd) -> Result<()> {
         }
         return Ok(());
     }
-    let v = wait_settled(c, Duration::from_secs_f64(d + 10.0))?;
+    let v = wait_settled(api, Duration::from_secs_f64(d + 10.0))?;
     print_status(c, &v);
     Ok(())
 }
 
 /// `pa10 stop|estop|reset|payload|load-model`: one request, `ok` or the refusal.
 pub fn simple(c: &Conn, req: Value) -> Result<()> {
-    let v = checked(c, req)?;
+    let v = checked(&mut Socket(c.clone()), req)?;
     if c.json {
         println!("{v}");
     } else {

@@ -1,83 +1,24 @@
 //! `pa10 collect`: drive the daemon through a pose list and record resolver angles and motor
 //! currents per pose; merge them with the instrument's measurements into a dataset. The
-//! driving helpers here are shared with `pa10 demo`, which talks to an in-process daemon
-//! through the same JSON requests.
+//! sampling helpers here are shared with `pa10 demo`, which talks to an in-process daemon
+//! through the same JSON requests ([`crate::client_cmd::Api`]).
 
 use std::io::BufRead;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use pa10::calib::collect::{self, RobotSample};
-use pa10::daemon::runtime::Shared;
 use serde_json::{Value, json};
 
-use crate::client_cmd::Conn;
-
-/// A way to send the daemon one JSON request and get its answer.
-pub trait Api {
-    /// Sends `req`, returns the daemon's answer (any `ok`).
-    fn call(&mut self, req: Value) -> Result<Value>;
-}
-
-/// The daemon behind its Unix socket.
-pub struct Socket(pub Conn);
-
-impl Api for Socket {
-    fn call(&mut self, req: Value) -> Result<Value> {
-        crate::client_cmd::send(&self.0, &req)
-    }
-}
-
-/// A daemon running in this process (the demo): the same request handler as the socket's.
-pub struct InProcess(pub Arc<Mutex<Shared>>);
-
-impl Api for InProcess {
-    fn call(&mut self, req: Value) -> Result<Value> {
-        Ok(pa10::daemon::api::handle(&self.0, &req.to_string()))
-    }
-}
-
-/// Sends `req`; a refusal is an error with the daemon's reason.
-pub fn checked(api: &mut dyn Api, req: Value) -> Result<Value> {
-    let v = api.call(req.clone())?;
-    if v["ok"] != true {
-        bail!(
-            "pa10d refused {}: {}",
-            req["cmd"],
-            v["error"].as_str().unwrap_or("unknown error")
-        );
-    }
-    Ok(v)
-}
-
-/// Polls `status` until the arm holds (an error on a fault or after `timeout`).
-pub fn wait_holding(api: &mut dyn Api, timeout: Duration) -> Result<Value> {
-    let end = Instant::now() + timeout;
-    loop {
-        let st = checked(api, json!({"cmd": "status"}))?["status"].clone();
-        match st["state"].as_str() {
-            Some("holding") => return Ok(st),
-            Some("fault") => bail!("pa10d faulted: {}", st["fault"]),
-            _ if Instant::now() > end => bail!("the move did not settle within {timeout:?}"),
-            _ => std::thread::sleep(Duration::from_millis(10)),
-        }
-    }
-}
+use crate::client_cmd::{Api, Conn, Socket, checked, wait_settled};
 
 /// Sends a move and waits until it settles.
 pub fn move_wait(api: &mut dyn Api, req: Value) -> Result<()> {
-    let t = Instant::now();
     let v = checked(api, req)?;
     let d = v["duration_s"].as_f64().unwrap_or(0.0);
-    wait_holding(api, Duration::from_secs_f64(d + 10.0))?;
-    tracing::debug!(
-        planned_s = d,
-        took_s = t.elapsed().as_secs_f64(),
-        "move settled"
-    );
+    wait_settled(api, Duration::from_secs_f64(d + 10.0))?;
     Ok(())
 }
 

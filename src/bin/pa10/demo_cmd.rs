@@ -16,12 +16,14 @@ use pa10::daemon::config::Config;
 use pa10::daemon::runtime::Daemon;
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, pose, sidecar};
+use pa10::sim::servo::{ServoSim, SharedServo};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::Serialize;
 use serde_json::json;
 
-use crate::collect_cmd::{Api, InProcess, checked, move_wait, sample, wait_still};
+use crate::client_cmd::{Api, InProcess, checked};
+use crate::collect_cmd::{move_wait, sample, wait_still};
 
 /// Arguments of `pa10 demo`.
 #[derive(Debug, Args)]
@@ -98,10 +100,14 @@ fn config_text(dir: &Path, seed: u64) -> String {
         .replace("log_level: info", "log_level: warn")
 }
 
-fn set_load(api: &mut dyn Api, sim: &pa10::sim::servo::SharedServo, n: f64) -> Result<()> {
+/// The simulated controller (its ground truth is the demo's instrument).
+fn lock(sim: &SharedServo) -> Result<std::sync::MutexGuard<'_, ServoSim>> {
     sim.lock()
-        .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))?
-        .set_load(n);
+        .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))
+}
+
+fn set_load(api: &mut dyn Api, sim: &SharedServo, n: f64) -> Result<()> {
+    lock(sim)?.set_load(n);
     checked(api, json!({"cmd": "set_payload", "newtons": n}))?;
     Ok(())
 }
@@ -173,16 +179,9 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
         .context("the virtual backend runs a simulator")?;
     let mut api = InProcess(d.shared.clone());
     let mut rng = Pcg64::seed_from_u64(a.seed ^ 0xde70);
-    let truth = sim
-        .lock()
-        .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))?
-        .truth()
-        .clone();
-    let cmm = |sim: &pa10::sim::servo::SharedServo, rng: &mut Pcg64| -> Result<Frame> {
-        let s = sim
-            .lock()
-            .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))?;
-        Ok(truth.observe_pose(&s.true_tool_pose(), rng))
+    let truth = lock(&sim)?.truth().clone();
+    let cmm = |sim: &SharedServo, rng: &mut Pcg64| -> Result<Frame> {
+        Ok(truth.observe_pose(&lock(sim)?.true_tool_pose(), rng))
     };
 
     // 1. Gather the calibration set through the daemon.
@@ -324,12 +323,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
                 let load = VAL_LOADS[l];
                 set_load(&mut api, &sim, load)?;
                 wait_still(&mut api, SETTLE_MIN, SETTLE_MAX)?;
-                let got = {
-                    let s = sim
-                        .lock()
-                        .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))?;
-                    truth_base.inverse() * s.true_tool_pose()
-                };
+                let got = truth_base.inverse() * lock(&sim)?.true_tool_pose();
                 let e = pose_error(target, &got);
                 errs[mi][l].push((
                     e.fixed_rows::<3>(0).norm() * 1e3,
