@@ -455,9 +455,13 @@ fn torque_sensitivity(state: &State, geom: &Model, o: &Obs) -> nalgebra::Matrix6
     let mut j = geom.jacobian(&q);
     for k in 0..6 {
         let c = state.compliance[k];
+        // dδ/dτ: the inverse of the spring's tangent stiffness at its deflection
         let dd = if state.kcub[k] > 0.0 && c > 0.0 {
-            let d = effects::deflection(c, state.kcub[k], o.tau[k]);
-            1.0 / (1.0 / c + 3.0 * state.kcub[k] * d * d)
+            let s = crate::model::Stiffness {
+                klin: 1.0 / c,
+                kcub: state.kcub[k],
+            };
+            1.0 / s.tangent(s.deflection(o.tau[k]))
         } else {
             c
         };
@@ -651,7 +655,8 @@ fn train_rms_mm(p: &Problem, raw: &[Vector6<f64>]) -> f64 {
     (ss / n.max(1) as f64).sqrt() * 1e3
 }
 
-fn lack_of_fit(p: &Problem, lin: &Lin) -> LackOfFit {
+/// The lack-of-fit test at `lin`, and the training normal matrix it was computed with.
+fn lack_of_fit(p: &Problem, lin: &Lin) -> (LackOfFit, DMatrix<f64>) {
     let (ss_pe, df_pe) = p.pure_error(&lin.raw);
     let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
     let train = p.white_rows(|b| b.train);
@@ -676,11 +681,12 @@ fn lack_of_fit(p: &Problem, lin: &Lin) -> LackOfFit {
     let within_dof = n_all - n_mean - 6.0 * n_blocks as f64 - df_pe as f64 - (lev_all - lev_mean);
     let between = Stratum::new(c_mean, n_mean - lev_mean, None);
     let within = Stratum::new((c_all - c_mean - ss_pe).max(0.0), within_dof, Some(df_pe));
-    LackOfFit {
+    let lof = LackOfFit {
         between,
         within,
         p_value: (2.0 * between.p_value.min(within.p_value)).min(1.0),
-    }
+    };
+    (lof, a)
 }
 
 /// The linearised drop of the whitened cost when the columns `r` join the first `nb` (whose
@@ -979,7 +985,7 @@ pub fn discover(
     let mut cur = fit::fit(&prob, &first.state, &slots, &fit::prior(&slots, &slots))?;
     let noise0 = noise;
     let floor = noise_floor_mm(&prob, &cur.state, &cur.state.geometry()?, &lay.folds, sr);
-    let lof0 = lack_of_fit(&prob, &cur.lin);
+    let (lof0, mut a_fit) = lack_of_fit(&prob, &cur.lin);
     let significant = lof0.p_value < opts.alpha;
     let base_cols: Vec<usize> = (0..slots.len()).collect();
     let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
@@ -1198,7 +1204,7 @@ pub fn discover(
         }
         (prob, noise) = problem(&lay, &refit.state)?;
         cur = fit::fit(&prob, &refit.state, &slots, &pr)?;
-        lof = lack_of_fit(&prob, &cur.lin);
+        (lof, a_fit) = lack_of_fit(&prob, &cur.lin);
         let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
         let (_, g2) = heldout(
             &prob,
@@ -1212,9 +1218,7 @@ pub fn discover(
         go = lof.p_value < opts.alpha;
     }
     // Uncertainties at the final fit.
-    let rows = prob.white_rows(|b| b.train);
-    let cols: Vec<usize> = (0..slots.len()).collect();
-    let (mut a, _) = fit::normal_eq(&cur.lin, &rows, &cols);
+    let mut a = a_fit;
     for (k, w) in fit::prior(&slots, &base_slots).iter().enumerate() {
         a[(k, k)] += w;
     }
