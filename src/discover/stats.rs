@@ -50,24 +50,14 @@ pub fn gamma_q(a: f64, x: f64) -> f64 {
         1.0 - sum * (-x + a * x.ln() - gln).exp()
     } else {
         // continued fraction for Q (modified Lentz)
-        let tiny = 1e-300;
         let mut b = x + 1.0 - a;
-        let mut c = 1.0 / tiny;
+        let mut c = 1.0 / TINY;
         let mut d = 1.0 / b;
         let mut h = d;
         for i in 1..10_000 {
             let an = -(i as f64) * (i as f64 - a);
             b += 2.0;
-            d = an * d + b;
-            if d.abs() < tiny {
-                d = tiny;
-            }
-            c = b + an / c;
-            if c.abs() < tiny {
-                c = tiny;
-            }
-            d = 1.0 / d;
-            let del = d * c;
+            let del = lentz_step(&mut d, &mut c, an, b);
             h *= del;
             if (del - 1.0).abs() < 1e-15 {
                 break;
@@ -109,46 +99,47 @@ pub fn beta_i(a: f64, b: f64, x: f64) -> f64 {
 }
 
 fn beta_cf(a: f64, b: f64, x: f64) -> f64 {
-    let tiny = 1e-300;
     let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
     let mut c = 1.0;
-    let mut d = 1.0 - qab * x / qap;
-    if d.abs() < tiny {
-        d = tiny;
-    }
-    d = 1.0 / d;
+    let mut d = 1.0 / nonzero(1.0 - qab * x / qap);
     let mut h = d;
     for m in 1..100_000 {
         let m = m as f64;
         let m2 = 2.0 * m;
-        let aa = m * (b - m) * x / ((qam + m2) * (a + m2));
-        d = 1.0 + aa * d;
-        if d.abs() < tiny {
-            d = tiny;
-        }
-        c = 1.0 + aa / c;
-        if c.abs() < tiny {
-            c = tiny;
-        }
-        d = 1.0 / d;
-        h *= d * c;
-        let aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2));
-        d = 1.0 + aa * d;
-        if d.abs() < tiny {
-            d = tiny;
-        }
-        c = 1.0 + aa / c;
-        if c.abs() < tiny {
-            c = tiny;
-        }
-        d = 1.0 / d;
-        let del = d * c;
+        // the even and the odd step of the fraction
+        h *= lentz_step(
+            &mut d,
+            &mut c,
+            m * (b - m) * x / ((qam + m2) * (a + m2)),
+            1.0,
+        );
+        let del = lentz_step(
+            &mut d,
+            &mut c,
+            -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2)),
+            1.0,
+        );
         h *= del;
         if (del - 1.0).abs() < 1e-15 {
             break;
         }
     }
     h
+}
+
+/// Smallest magnitude the continued fractions' denominators are allowed.
+const TINY: f64 = 1e-300;
+
+fn nonzero(v: f64) -> f64 {
+    if v.abs() < TINY { TINY } else { v }
+}
+
+/// One step of the modified Lentz method for a continued fraction `… aa/(b + …)`: updates
+/// the running `d` and `c`, returns the factor that multiplies the fraction's value.
+fn lentz_step(d: &mut f64, c: &mut f64, aa: f64, b: f64) -> f64 {
+    *d = 1.0 / nonzero(b + aa * *d);
+    *c = nonzero(b + aa / *c);
+    *d * *c
 }
 
 /// P(F_{d1,d2} > x): the p-value of an F statistic (a ratio of two χ²/dof, the
