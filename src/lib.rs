@@ -11,6 +11,9 @@
 //! - [`accuracy`]: the resolver-uncertainty bound (Monte Carlo and linearised).
 //! - [`calib`]: datasets, the two-level calibration, gathering through the daemon.
 //! - [`discover`]: is anything missing from the model, what, and does adding it help.
+//! - [`noise`]: what the data's noise is — reading noise, repeatable resolver error,
+//!   instrument and torque noise — estimated from the data as variance components.
+//! - [`stats`]: the distribution functions the tests of calibration and discovery need.
 //! - [`sim`]: the simulated PA10 (hidden truth, servo controller, campaigns).
 //! - [`can`] and [`daemon`]: the protocol, buses and the control daemon's core.
 //!
@@ -32,5 +35,7 @@ pub mod can;
 pub mod daemon;
 pub mod discover;
 pub mod model;
+pub mod noise;
 pub mod plot;
 pub mod sim;
+pub mod stats;

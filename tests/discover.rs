@@ -312,11 +312,14 @@ fn hidden_thermal_expansion_of_the_forearm_is_named() {
 fn two_hidden_effects_are_found_in_order_of_size() {
     let d = run("j4-and-backlash", 16);
     assert!(d.effects[0].gain_mm > d.effects[1].gain_mm);
-    assert_eq!(
-        d.steps.len(),
-        3,
-        "two acceptances and a final step with nothing left"
-    );
+    assert_eq!(d.effects.len(), 2);
+    // Two acceptances, then either the lack of fit is gone (the selection stops) or a
+    // final step accepts nothing.
+    match d.steps.len() {
+        2 => assert!(d.lack_of_fit_after.p_value >= 0.01),
+        3 => assert!(d.steps[2].accepted.is_none()),
+        n => panic!("{n} steps"),
+    }
 }
 
 #[test]

@@ -18,7 +18,6 @@
 
 pub mod effects;
 mod fit;
-pub mod stats;
 
 use std::collections::{BTreeMap, HashMap};
 
@@ -31,6 +30,7 @@ use serde::Serialize;
 use crate::calib::dataset::{Dataset, Effort};
 use crate::calib::fit::{CalibOptions, fit_base_only};
 use crate::model::{EffectRecord, Model, ModelError, frame_from_pose};
+use crate::stats;
 use effects::{BASE_ABSORBED, Effect, Kind, Obs, Slot, State};
 use fit::{Lin, Problem};
 
@@ -147,20 +147,13 @@ pub struct LackOfFit {
 }
 
 /// The noise the floor and the weights come from.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NoiseReport {
-    /// Instrument position noise per component (1σ), µm, from the repeats.
-    pub position_um: f64,
-    /// Instrument orientation noise per component (1σ), µrad, from the repeats.
-    pub orientation_urad: f64,
-    /// Relative noise of the measured joint torques (1σ), from the repeats.
-    pub torque_rel: f64,
-    /// Absolute noise of the measured joint torques (1σ), N·m, from the repeats.
-    pub torque_abs_nm: f64,
-    /// Resolver error per joint (1σ), arcmin.
-    pub resolver_arcmin: f64,
-    /// Degrees of freedom of the repeat scatter (0: taken from the sidecar).
-    pub repeat_dof: usize,
+    /// The components estimated from the data, with their structure.
+    pub model: crate::noise::NoiseModel,
+    /// Repeatable resolver error used in the weights and the floor (the estimate capped at
+    /// the resolver's specified σ), rad.
+    pub repeatable_used_rad: f64,
 }
 
 /// How one candidate scored at one step.
@@ -408,47 +401,6 @@ fn layout(
     })
 }
 
-/// Non-negative least squares for a handful of unknowns (active set: drop the most
-/// negative, re-solve).
-fn nnls(a: &DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
-    // Unit columns, so that unknowns of very different size are solved alike.
-    let norms: Vec<f64> = (0..a.ncols())
-        .map(|j| a.column(j).norm().max(1e-300))
-        .collect();
-    let a = &DMatrix::from_fn(a.nrows(), a.ncols(), |i, j| a[(i, j)] / norms[j]);
-    let x = nnls_unit(a, b);
-    DVector::from_fn(x.len(), |j, _| x[j] / norms[j])
-}
-
-fn nnls_unit(a: &DMatrix<f64>, b: &DVector<f64>) -> DVector<f64> {
-    let n = a.ncols();
-    let mut free: Vec<usize> = (0..n).collect();
-    loop {
-        let sub = DMatrix::from_fn(a.nrows(), free.len(), |i, j| a[(i, free[j])]);
-        let ata = sub.transpose() * &sub;
-        let atb = sub.transpose() * b;
-        let (neg, _) = fit::damped_solve(&ata, &(-atb), 0.0);
-        let mut x = DVector::zeros(n);
-        for (k, &f) in free.iter().enumerate() {
-            x[f] = neg[k];
-        }
-        match free
-            .iter()
-            .enumerate()
-            .filter(|(k, _)| neg[*k] < 0.0)
-            .min_by(|a, b| neg[a.0].total_cmp(&neg[b.0]))
-        {
-            Some((k, _)) => {
-                free.remove(k);
-            }
-            None => return x,
-        }
-        if free.is_empty() {
-            return DVector::zeros(n);
-        }
-    }
-}
-
 /// Per-row pose sensitivity to each joint's torque, `∂pose/∂τ_j` (6 × 6).
 fn torque_sensitivity(state: &State, geom: &Model, o: &Obs) -> nalgebra::Matrix6<f64> {
     let q = effects::link_angles(state, o);
@@ -472,145 +424,79 @@ fn torque_sensitivity(state: &State, geom: &Model, o: &Obs) -> nalgebra::Matrix6
     j
 }
 
-/// The noise model at `state`: per-row covariance `D_i = diag(σ_p²·I₃, σ_o²·I₃) +
-/// Σ_j g_j g_jᵀ·(r²τ_j² + a²)` (instrument noise plus measured-torque noise, relative `r`
-/// and absolute `a`, seen through the springs), its four levels estimated from the scatter
-/// of repeats by the method of moments; then the whitened problem.
-fn problem(lay: &Layout, state: &State) -> Result<(Problem, NoiseReport), DiscoverError> {
+/// The noise model at `state`, estimated from the data by [`crate::noise`] (reading noise,
+/// repeatable resolver error, instrument and torque noise), and the whitened problem. The
+/// repeatable error used for whitening is the estimate capped at the resolver's specified σ:
+/// between-configuration variance beyond the specification is lack of fit, not noise (an
+/// uncapped estimate would absorb any missing effect of the configuration).
+fn problem(
+    lay: &Layout,
+    state: &State,
+    n_params: usize,
+) -> Result<(Problem, NoiseReport), DiscoverError> {
     let geom = state.geometry()?;
     let sens: Vec<nalgebra::Matrix6<f64>> = lay
         .obs
         .iter()
         .map(|o| torque_sensitivity(state, &geom, o))
         .collect();
-    let mut eqs: Vec<([f64; 4], f64)> = Vec::new();
-    let mut dof = 0usize;
-    for (rows, train, cells) in &lay.blocks {
-        let _ = rows;
+    let jac: Vec<nalgebra::Matrix6<f64>> = lay
+        .obs
+        .iter()
+        .map(|o| geom.jacobian(&effects::link_angles(state, o)))
+        .collect();
+    let mut samples = Vec::new();
+    let mut cell_id = 0usize;
+    let mut train_blocks = 0usize;
+    for (b, (_, train, cells)) in lay.blocks.iter().enumerate() {
         if !train {
             continue;
         }
+        train_blocks += 1;
         for c in cells {
-            if c.len() < 2 {
-                continue;
+            for &i in c {
+                let o = &lay.obs[i];
+                samples.push(crate::noise::Sample {
+                    config: b,
+                    cell: cell_id,
+                    q: o.q,
+                    tau: o.tau,
+                    residual: effects::residual(state, &geom, o),
+                    jq: jac[i],
+                    jt: sens[i],
+                });
             }
-            let r: Vec<Vector6<f64>> = c
-                .iter()
-                .map(|&i| effects::residual(state, &geom, &lay.obs[i]))
-                .collect();
-            let mean = r.iter().sum::<Vector6<f64>>() / r.len() as f64;
-            let f = 1.0 - 1.0 / c.len() as f64;
-            for (k, &i) in c.iter().enumerate() {
-                let d = r[k] - mean;
-                let (mut gp_t, mut gp_a, mut go_t, mut go_a) = (0.0, 0.0, 0.0, 0.0);
-                for j in 0..6 {
-                    let g = sens[i].column(j);
-                    let tau2 = lay.obs[i].tau[j].powi(2);
-                    let np = g.fixed_rows::<3>(0).norm_squared();
-                    let no = g.fixed_rows::<3>(3).norm_squared();
-                    gp_t += np * tau2;
-                    gp_a += np;
-                    go_t += no * tau2;
-                    go_a += no;
-                }
-                eqs.push((
-                    [3.0 * f, 0.0, f * gp_t, f * gp_a],
-                    d.fixed_rows::<3>(0).norm_squared(),
-                ));
-                eqs.push((
-                    [0.0, 3.0 * f, f * go_t, f * go_a],
-                    d.fixed_rows::<3>(3).norm_squared(),
-                ));
-            }
-            dof += c.len() - 1;
+            cell_id += 1;
         }
     }
-    let x = if dof >= 10 {
-        // Scale position and orientation equations to comparable size.
-        let mean_of = |k: usize| {
-            let v: Vec<f64> = eqs.iter().skip(k).step_by(2).map(|e| e.1).collect();
-            (v.iter().sum::<f64>() / v.len().max(1) as f64).max(1e-300)
-        };
-        let (sp, so) = (mean_of(0), mean_of(1));
-        let a = DMatrix::from_fn(eqs.len(), 4, |i, j| {
-            eqs[i].0[j] / if i % 2 == 0 { sp } else { so }
-        });
-        let b = DVector::from_fn(eqs.len(), |i, _| {
-            eqs[i].1 / if i % 2 == 0 { sp } else { so }
-        });
-        let x = nnls(&a, &b);
-        [x[0], x[1], x[2], x[3]]
-    } else if let Some(p) = lay.meta_position_m {
-        let v = p * p / 3.0;
-        [v, v / 0.01, 0.0, 0.0]
-    } else {
-        return Err(DiscoverError::Data(
-            "no repeat measurements (same configuration, load, direction, temperature) and no \
-             sidecar noise: the noise floor is unknown"
-                .into(),
-        ));
+    let prior = crate::noise::Prior {
+        position_m: lay.meta_position_m.unwrap_or(12.1e-6),
+        resolver_rad: lay.resolver_arcmin * crate::accuracy::ARCMIN,
     };
-    let mut x = x;
-    if dof >= 10 {
-        // A level the moments put at zero is floored at 1 % of what the scatter shows.
-        let scatter = |k: usize| {
-            eqs.iter().skip(k).step_by(2).map(|e| e.1).sum::<f64>() / (3 * dof).max(1) as f64
-        };
-        x[0] = x[0].max(0.01 * scatter(0));
-        x[1] = x[1].max(0.01 * scatter(1));
-    }
-    if !(x[0] > 0.0 && x[1] > 0.0) {
-        return Err(DiscoverError::Data(
-            "the repeat measurements show no scatter at all: repeats must be separate measurements"
-                .into(),
-        ));
-    }
-    let build = |x: [f64; 4]| -> Vec<nalgebra::Matrix6<f64>> {
-        lay.obs
-            .iter()
-            .zip(&sens)
-            .map(|(o, g)| {
-                let mut m = nalgebra::Matrix6::from_diagonal(&Vector6::new(
-                    x[0], x[0], x[0], x[1], x[1], x[1],
-                ));
-                for j in 0..6 {
-                    let c = g.column(j);
-                    m += c * c.transpose() * (x[2] * o.tau[j].powi(2) + x[3]);
-                }
-                m
-            })
-            .collect()
-    };
-    let sr = lay.resolver_arcmin * crate::accuracy::ARCMIN;
-    if dof >= 10 {
-        // The moments fix the shape of the noise model; the whitened pure error fixes its
-        // scale (so that it has exactly its degrees of freedom).
-        let p = Problem::new(
-            lay.obs.clone(),
-            lay.blocks.clone(),
-            &build(x),
-            state,
-            &geom,
-            sr,
-        );
-        let raw = p.raw(state)?;
-        let (ss, df) = p.pure_error(&raw);
-        let scale = ss / df.max(1) as f64;
-        for v in &mut x {
-            *v *= scale;
-        }
-    }
-    let d = build(x);
-    let p = Problem::new(lay.obs.clone(), lay.blocks.clone(), &d, state, &geom, sr);
+    let between_dof = (6 * train_blocks) as f64 - n_params as f64;
+    let rot = *geom.base_from_instrument().rotation.matrix();
+    let model = crate::noise::estimate(&samples, &rot, between_dof.max(1.0), &prior)
+        .map_err(|e| DiscoverError::Data(e.to_string()))?;
+    let repeatable_used = model.repeatable_rad.value.min(prior.resolver_rad);
+    let d: Vec<nalgebra::Matrix6<f64>> = lay
+        .obs
+        .iter()
+        .enumerate()
+        .map(|(i, o)| model.row_covariance(&jac[i], &sens[i], &o.tau))
+        .collect();
+    let p = Problem::new(
+        lay.obs.clone(),
+        lay.blocks.clone(),
+        &d,
+        state,
+        &geom,
+        repeatable_used,
+    );
     Ok((
         p,
         NoiseReport {
-            position_um: x[0].sqrt() * 1e6,
-            orientation_urad: x[1].sqrt() * 1e6,
-            torque_rel: x[2].sqrt(),
-            torque_abs_nm: x[3].sqrt(),
-            resolver_arcmin: lay.resolver_arcmin,
-            repeat_dof: if dof >= 10 { dof } else { 0 },
+            repeatable_used_rad: repeatable_used,
+            model,
         },
     ))
 }
@@ -905,6 +791,55 @@ fn noise_floor_mm(p: &Problem, state: &State, geom: &Model, folds: &[Vec<usize>]
     (ss / n.max(1) as f64).sqrt() * 1e3
 }
 
+/// The held-out comparison of two models over held-out configurations (`d`: per
+/// configuration cost drop): a one-sided paired t-test and a sign test, each at α/2
+/// (Bonferroni), and a positive mean gain.
+struct Paired {
+    mean: f64,
+    t: f64,
+    t_crit: f64,
+    better: usize,
+    sign_p: f64,
+    pass: bool,
+}
+
+impl Paired {
+    fn new(d: &[f64], alpha: f64) -> Self {
+        let n = d.len() as f64;
+        let mean = d.iter().sum::<f64>() / n.max(1.0);
+        let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+        let t = if sd > 0.0 {
+            mean / (sd / n.sqrt())
+        } else {
+            0.0
+        };
+        // The sign test cannot be fooled by heavy-tailed per-configuration gains.
+        let t_crit = stats::t_quantile(1.0 - 0.5 * alpha, (n - 1.0).max(1.0));
+        let better = d.iter().filter(|x| **x > 0.0).count();
+        let sign_p = stats::sign_test(better, d.len());
+        Self {
+            mean,
+            t,
+            t_crit,
+            better,
+            sign_p,
+            pass: mean > 0.0 && (t > t_crit || sign_p < 0.5 * alpha),
+        }
+    }
+}
+
+/// The lack-of-fit test on the noise model's own weights (dispersion 1), at `state`.
+fn plain_lack_of_fit(
+    p: &Problem,
+    state: &State,
+    slots: &[Slot],
+) -> Result<(LackOfFit, DMatrix<f64>), DiscoverError> {
+    let mut plain = p.clone();
+    plain.dispersion = (1.0, 1.0);
+    let lin = fit::linearise(&plain, state, slots)?;
+    Ok(lack_of_fit(&plain, &lin))
+}
+
 fn check(opts: &DiscoverOptions) -> Result<(), DiscoverError> {
     let bad = |key, reason: String| Err(DiscoverError::Option { key, reason });
     if !(2..=50).contains(&opts.folds) {
@@ -975,17 +910,15 @@ pub fn discover(
         .map(|b| 6 * b.0.len())
         .sum();
     let ln_n = (n_resid as f64).ln();
-    let sr = lay.resolver_arcmin * crate::accuracy::ARCMIN;
     let mut slots = model_slots(&m0);
     let base_slots = slots.clone();
     // Fit, re-estimate the noise model at the fit (it depends on the springs), fit again.
-    let (p0, _) = problem(&lay, &state0)?;
-    let first = fit::fit(&p0, &state0, &slots, &fit::prior(&slots, &slots))?;
-    let (mut prob, mut noise) = problem(&lay, &first.state)?;
-    let mut cur = fit::fit(&prob, &first.state, &slots, &fit::prior(&slots, &slots))?;
-    let noise0 = noise;
-    let floor = noise_floor_mm(&prob, &cur.state, &cur.state.geometry()?, &lay.folds, sr);
-    let (lof0, mut a_fit) = lack_of_fit(&prob, &cur.lin);
+    let (mut p0, _) = problem(&lay, &state0, slots.len())?;
+    let first = fit::fit_balanced(&mut p0, &state0, &slots, &fit::prior(&slots, &slots))?;
+    let (mut prob, mut noise) = problem(&lay, &first.state, slots.len())?;
+    let mut cur = fit::fit_balanced(&mut prob, &first.state, &slots, &fit::prior(&slots, &slots))?;
+    let noise0 = noise.clone();
+    let (lof0, mut a_fit) = plain_lack_of_fit(&prob, &cur.state, &slots)?;
     let significant = lof0.p_value < opts.alpha;
     let base_cols: Vec<usize> = (0..slots.len()).collect();
     let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
@@ -994,6 +927,8 @@ pub fn discover(
     let raw_before = cur.lin.raw.clone();
     let mut steps = Vec::new();
     let mut found: Vec<(Effect, f64)> = Vec::new();
+    // Effects whose nonlinear refit did not improve the held-out prediction.
+    let mut rejected: Vec<Effect> = Vec::new();
     // What a free base frame absorbs exactly is not identifiable by construction (scoring
     // it numerically would only measure the curvature of the rotation group).
     let mut not_identifiable: Vec<String> = BASE_ABSORBED
@@ -1013,6 +948,7 @@ pub fn discover(
         let cands: Vec<Effect> = effects::candidates(&slots, &[])
             .into_iter()
             .filter(|e| opts.only.as_ref().is_none_or(|o| o.contains(&e.kind)))
+            .filter(|e| !rejected.contains(e))
             .collect();
         let mut all = slots.clone();
         let mut ranges = Vec::new();
@@ -1029,7 +965,9 @@ pub fn discover(
         let a_bb = a.view((0, 0), (nb, nb)).into_owned();
         let a_bb_inv = fit::pinv(&a_bb);
         let g_b = g.rows(0, nb).into_owned();
-        let dispersion = lof.between.ratio.min(lof.within.ratio).max(1.0);
+        // Scores are on the fit's weights (balanced while the model misfits grossly).
+        let (lof_w, _) = lack_of_fit(&prob, &cur.lin);
+        let dispersion = lof_w.between.ratio.min(lof_w.within.ratio).max(1.0);
         let df_pe = prob.pure_error(&lin.raw).1.max(1) as f64;
         let mut scores: Vec<(Score, usize)> = Vec::new();
         for (ci, e) in cands.iter().enumerate() {
@@ -1102,24 +1040,13 @@ pub fn discover(
             let (costs, gap_c) = heldout(&prob, &lin, &eqs, &lay.folds, &cols);
             let d: Vec<f64> = base_costs.iter().zip(&costs).map(|(a, b)| a - b).collect();
             let n = d.len() as f64;
-            let mean = d.iter().sum::<f64>() / n;
-            let sd =
-                (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
-            let t = if sd > 0.0 {
-                mean / (sd / n.sqrt())
-            } else {
-                0.0
-            };
-            // Two held-out tests at α/2 each (Bonferroni): the paired t-test, and the sign
-            // test, which heavy-tailed per-configuration gains cannot fool.
-            let t_crit = stats::t_quantile(1.0 - 0.5 * opts.alpha, (n - 1.0).max(1.0));
-            let better = d.iter().filter(|x| **x > 0.0).count();
-            let sign_p = stats::sign_test(better, d.len());
-            s.heldout_gain = Some(mean * n);
+            let test = Paired::new(&d, opts.alpha);
+            let (t, t_crit, better, sign_p) = (test.t, test.t_crit, test.better, test.sign_p);
+            s.heldout_gain = Some(test.mean * n);
             s.paired_t = Some(t);
             s.sign_p = Some(sign_p);
             s.heldout_gap_mm = Some(gap_c);
-            if t > t_crit || sign_p < 0.5 * opts.alpha {
+            if test.pass {
                 // Would another configuration sample have named the same effect?
                 let blocks = block_eqs.get_or_insert_with(|| {
                     let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
@@ -1188,31 +1115,79 @@ pub fn discover(
         for (c, &col) in cols.iter().enumerate() {
             st.set(all[col], cur.state.get(all[col]) + d[c] * all[col].scale());
         }
+        let before = (
+            prob.clone(),
+            noise.clone(),
+            cur.clone(),
+            slots.clone(),
+            lof,
+            a_fit.clone(),
+        );
         slots.extend(e.slots());
         let pr = fit::prior(&slots, &base_slots);
-        let mut refit = fit::fit(&prob, &st, &slots, &pr)?;
+        let mut pa = prob.clone();
+        let mut refit = fit::fit_balanced(&mut pa, &st, &slots, &pr)?;
         // A missing effect can drag the geometry far from nominal while the model tries to
         // absorb it; refit also from the starting geometry with the effects' estimates, and
-        // keep the better optimum.
+        // from the current fit with the effect at zero (never worse than the current fit),
+        // and keep the best optimum on the first refit's weights.
         let mut st2 = state0.clone();
         for &sl in slots.iter().filter(|s| !base_slots.contains(s)) {
             st2.set(sl, refit.state.get(sl));
         }
-        let alt = fit::fit(&prob, &st2, &slots, &pr)?;
-        if alt.cost < refit.cost {
-            refit = alt;
+        for start in [st2, cur.state.clone()] {
+            let mut pb = prob.clone();
+            let alt = fit::fit_balanced(&mut pb, &start, &slots, &pr)?;
+            let alt_cost = fit::cost_at(&pa, &alt.state, &slots, &pr)?;
+            if alt_cost < refit.cost {
+                refit = fit::Fitted {
+                    cost: alt_cost,
+                    ..alt
+                };
+            }
         }
-        (prob, noise) = problem(&lay, &refit.state)?;
-        cur = fit::fit(&prob, &refit.state, &slots, &pr)?;
-        (lof, a_fit) = lack_of_fit(&prob, &cur.lin);
+        (prob, noise) = problem(&lay, &refit.state, slots.len())?;
+        cur = fit::fit_balanced(&mut prob, &refit.state, &slots, &pr)?;
+        (lof, a_fit) = plain_lack_of_fit(&prob, &cur.state, &slots)?;
+        // The refitted model must predict held-out configurations better than the model
+        // before it, on the same weights: positive and significant (paired over held-out
+        // configurations), whatever the linearised scores said.
+        let all_cols = |n: usize| (0..n).collect::<Vec<_>>();
         let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
-        let (_, g2) = heldout(
+        let (costs_new, g2) = heldout(&prob, &cur.lin, &eqs, &lay.folds, &all_cols(slots.len()));
+        let lin_prev = fit::linearise(&prob, &before.2.state, &before.3)?;
+        let eqs_prev = fold_eqs(&prob, &lin_prev, &lay.folds, lay.holdout);
+        let (costs_prev, g_prev) = heldout(
             &prob,
-            &cur.lin,
-            &eqs,
+            &lin_prev,
+            &eqs_prev,
             &lay.folds,
-            &(0..slots.len()).collect::<Vec<_>>(),
+            &all_cols(before.3.len()),
         );
+        let d: Vec<f64> = costs_prev
+            .iter()
+            .zip(&costs_new)
+            .map(|(a, b)| a - b)
+            .collect();
+        let test = Paired::new(&d, opts.alpha);
+        if !(test.pass && g2 < g_prev && g2 < gap) {
+            let label = e.label();
+            if let Some(step) = steps.last_mut() {
+                step.accepted = None;
+                if let Some(sc) = step.candidates.iter_mut().find(|c| c.label == label) {
+                    sc.passed = false;
+                    sc.note = format!(
+                        "rejected after the nonlinear refit: held-out RMS {g_prev:.3} → {g2:.3} mm, paired t = {:.2}, {} of {} held-out configurations better",
+                        test.t,
+                        test.better,
+                        d.len()
+                    );
+                }
+            }
+            (prob, noise, cur, slots, lof, a_fit) = before;
+            rejected.push(e);
+            continue;
+        }
         found.push((e, gap - g2));
         gap = g2;
         go = lof.p_value < opts.alpha;
@@ -1278,7 +1253,13 @@ pub fn discover(
         gap_after_mm: gap,
         train_gap_before_mm: train0,
         train_gap_after_mm: train_rms_mm(&prob, &cur.lin.raw),
-        noise_floor_mm: floor,
+        noise_floor_mm: noise_floor_mm(
+            &prob,
+            &cur.state,
+            &cur.state.geometry()?,
+            &lay.folds,
+            noise.repeatable_used_rad,
+        ),
         heldout: if lay.holdout {
             format!("holdout set ({} configurations)", lay.folds[0].len())
         } else {

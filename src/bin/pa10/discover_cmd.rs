@@ -133,15 +133,14 @@ fn report(dir: &Path, d: &Discovery) -> Result<()> {
 }
 
 fn print(d: &Discovery, out: Option<&Path>) {
-    let n = &d.noise;
+    let n = &d.noise_after;
+    println!("{}", n.model.summary());
+    if let Some(a) = &n.model.assumption {
+        println!("  assumed: {a}");
+    }
     println!(
-        "noise (from {} repeat dof): instrument {:.1} µm / {:.0} µrad per axis, torque {:.2} % + {:.3} N·m, resolver {:.2} arcmin",
-        n.repeat_dof,
-        n.position_um,
-        n.orientation_urad,
-        100.0 * n.torque_rel,
-        n.torque_abs_nm,
-        n.resolver_arcmin
+        "  weights and floor use a repeatable resolver error of {:.2} arcmin (the estimate, at most the resolver's specified σ)",
+        n.repeatable_used_rad / pa10::accuracy::ARCMIN
     );
     let l = &d.lack_of_fit_before;
     println!(

@@ -1,4 +1,4 @@
-//! The few distribution functions discovery needs: the χ² and F upper tails (regularised
+//! The few distribution functions calibration, the noise estimator and discovery need: the χ² and F upper tails (regularised
 //! incomplete gamma and beta, series and continued fractions as in Numerical Recipes §6.2,
 //! §6.4) and
 //! normal / Student-t quantiles (Acklam's rational approximation, Cornish–Fisher for t).
@@ -70,7 +70,7 @@ pub fn gamma_q(a: f64, x: f64) -> f64 {
 /// P(χ²_k > x): the p-value of a χ² statistic with `k` degrees of freedom.
 ///
 /// ```
-/// use pa10::discover::stats::chi2_sf;
+/// use pa10::stats::chi2_sf;
 /// assert!((chi2_sf(3.841_458_820_694_124, 1.0) - 0.05).abs() < 1e-9);
 /// assert!((chi2_sf(23.209_251_158_954_36, 10.0) - 0.01).abs() < 1e-9);
 /// ```
@@ -79,6 +79,36 @@ pub fn chi2_sf(x: f64, k: f64) -> f64 {
         return 1.0;
     }
     gamma_q(0.5 * k, 0.5 * x).clamp(0.0, 1.0)
+}
+
+/// The `p` quantile of χ²_k: the `x` with P(χ²_k ≤ x) = p (bisection on [`chi2_sf`],
+/// relative accuracy 1e-12).
+///
+/// ```
+/// use pa10::stats::chi2_quantile;
+/// assert!((chi2_quantile(0.95, 1.0) - 3.841_458_820_694_124).abs() < 1e-8);
+/// assert!((chi2_quantile(0.01, 10.0) - 2.558_212_160_930_165).abs() < 1e-8);
+/// ```
+pub fn chi2_quantile(p: f64, k: f64) -> f64 {
+    if !(p > 0.0 && p < 1.0 && k > 0.0) {
+        return f64::NAN;
+    }
+    let (mut lo, mut hi) = (0.0, k.max(1.0));
+    while chi2_sf(hi, k) > 1.0 - p {
+        hi *= 2.0;
+    }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if chi2_sf(mid, k) > 1.0 - p {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo <= 1e-12 * hi {
+            break;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// Regularised incomplete beta `I_x(a, b)` (continued fraction, Numerical Recipes §6.4).
