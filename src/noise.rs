@@ -57,10 +57,11 @@ pub struct Sample {
     /// Measured minus predicted pose in the robot base frame: position (m), then rotation
     /// vector (rad).
     pub residual: Vector6<f64>,
-    /// `∂pose/∂q`: the predicted pose's sensitivity to the readings (m/rad, rad/rad).
+    /// `∂pred/∂q`: the predicted pose's sensitivity to the readings (m/rad, rad/rad).
     pub jq: Matrix6<f64>,
-    /// `∂pose/∂τ`: the predicted pose's sensitivity to the measured torques through the
-    /// springs (m/(N·m), rad/(N·m)); zero for a rigid model.
+    /// `∂pred/∂τ`: the predicted pose's sensitivity to the measured torques through the
+    /// springs (m/(N·m), rad/(N·m); `−J·dδ/dτ` for springs the link lags by `δ(τ)`); zero
+    /// for a rigid model.
     pub jt: Matrix6<f64>,
 }
 
@@ -239,9 +240,9 @@ fn check(samples: &[Sample], prior: &Prior) -> Result<(), NoiseError> {
             prior.position_m
         )));
     }
-    if !(prior.resolver_rad.is_finite() && prior.resolver_rad > 0.0) {
+    if !(prior.resolver_rad.is_finite() && prior.resolver_rad >= 0.0) {
         return Err(NoiseError::Prior(format!(
-            "resolver σ must be a finite angle > 0 rad, got {}",
+            "resolver σ must be a finite angle ≥ 0 rad, got {}",
             prior.resolver_rad
         )));
     }

@@ -22,6 +22,7 @@ use rayon::prelude::*;
 
 use super::base::{self, Psi};
 use super::dataset::{Dataset, Effort};
+use super::weights::{self, Whitening, config_groups, whitening};
 use crate::model::params::{IDX_KCUB, IDX_KLIN, PARAM_COUNT};
 use crate::model::{
     Frame, Model, ModelError, ParamVector, Stiffness, frame_from_pose, param_names,
@@ -61,6 +62,10 @@ pub struct CalibOptions {
 /// How the data residuals are weighted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum Weighting {
+    /// From the noise the data show ([`crate::noise`]): per-row weights from the measured
+    /// instrument, reading and torque noise, then — if the configuration means show a
+    /// repeatable resolver error — a second fit with the GLS transform at its estimate.
+    Measured,
     /// The paper's cost exactly: every row's position error / `r_max` and orientation error
     /// (rad), all with weight one.
     Paper,
@@ -86,7 +91,7 @@ impl Default for CalibOptions {
             stiffness_seed: PAPER_STIFFNESS,
             torque_constants: None,
             noise_level: None,
-            weighting: Weighting::Gls,
+            weighting: Weighting::Measured,
         }
     }
 }
@@ -144,6 +149,8 @@ pub struct CalibResult {
     pub start_costs: Vec<f64>,
     /// Residual noise level used for the weak-direction test (paper units).
     pub noise_level: f64,
+    /// The noise the data show, at the fitted model (with [`Weighting::Measured`]).
+    pub noise: Option<crate::noise::NoiseModel>,
     /// Base-frame parameters Ψ (m, rad).
     pub psi: Psi,
 }
@@ -317,38 +324,6 @@ struct Outer<'a> {
     s: DVector<f64>,
     model: Option<Model>,
     psi: Psi,
-}
-
-/// The GLS transform: per configuration group, per residual component,
-/// `r'_k = (r_k − (1 − w)·r̄) / σ_e` with `w² = σ_e² / (σ_e² + n·σ_u²)`.
-#[derive(Debug, Clone)]
-pub(crate) struct Whitening {
-    /// Row indices of each configuration.
-    groups: Vec<Vec<usize>>,
-    /// Per residual component (3 position, 3 orientation): σ_e, σ_u (paper units).
-    sigma_e: [f64; 6],
-    sigma_u: [f64; 6],
-}
-
-impl Whitening {
-    /// Applies the transform to the 6-per-row block of `m` (rows 0…6·n), in place; `cols`
-    /// columns (1 for a residual vector).
-    fn apply(&self, m: &mut DMatrix<f64>) {
-        let cols = m.ncols();
-        for g in &self.groups {
-            let n = g.len() as f64;
-            for c in 0..6 {
-                let (se, su) = (self.sigma_e[c], self.sigma_u[c]);
-                let w = (se * se / (se * se + n * su * su)).sqrt();
-                for col in 0..cols {
-                    let mean = g.iter().map(|&k| m[(6 * k + c, col)]).sum::<f64>() / n;
-                    for &k in g {
-                        m[(6 * k + c, col)] = (m[(6 * k + c, col)] - (1.0 - w) * mean) / se;
-                    }
-                }
-            }
-        }
-    }
 }
 
 impl<'a> Outer<'a> {
@@ -673,8 +648,21 @@ pub fn calibrate(
         )));
     }
     let psi0 = seed_base(&m0, &rows, lines)?;
-    let whitening =
-        (opts.weighting == Weighting::Gls).then(|| whitening(data, &m0, &rows, opts.r_max));
+    let prior = weights::prior(data);
+    let mut whitening = match opts.weighting {
+        Weighting::Paper => None,
+        Weighting::Gls => Some(whitening(data, &m0, &rows, opts.r_max)),
+        Weighting::Measured => {
+            // The within-cell components need only the Jacobians; the repeatable error
+            // waits for the fit (configuration means of a nominal model are all misfit).
+            let placed = m0.with_base_from_instrument(&base::frame_from_psi(&psi0))?;
+            let samples = weights::samples(data, &placed, &rows);
+            let rot = *placed.base_from_instrument().rotation.matrix();
+            let nm = crate::noise::within(&samples, &rot, &prior)
+                .map_err(|e| CalibError::Data(e.to_string()))?;
+            Some(weights::from_noise(data, &nm, &samples, 0.0, opts.r_max))
+        }
+    };
     let noise = match &whitening {
         // whitened residuals have unit variance and their correlation is modelled
         Some(_) => 1.0,
@@ -730,41 +718,89 @@ pub fn calibrate(
         })
         .collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let runs: Vec<Result<StartOutcome, String>> = starts
-        .par_iter()
-        .map(|s| {
-            let pb = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, s, psi0);
-            let (pb, report) = levenberg_marquardt::LevenbergMarquardt::new()
-                .with_patience(200)
-                .minimize(pb);
-            progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
-            use levenberg_marquardt::TerminationReason as T;
-            // A step that can no longer reduce the cost is a converged fit, not a failure.
-            let ok = report.termination.was_successful()
-                || matches!(
-                    report.termination,
-                    T::LostPatience | T::NoImprovementPossible(_) | T::Orthogonal
-                );
-            if ok && pb.model.is_some() && report.objective_function.is_finite() {
-                Ok((pb.s.clone(), 2.0 * report.objective_function, pb.psi))
+    let solve = |starts: &[(DVector<f64>, Psi)],
+                 whitening: Option<&Whitening>|
+     -> Result<(DVector<f64>, f64, Psi, Vec<f64>), CalibError> {
+        let runs: Vec<Result<StartOutcome, String>> = starts
+            .par_iter()
+            .map(|(s, psi)| {
+                let pb = Outer::at(&m0, &rows, &map, opts, whitening, &priors, s, *psi);
+                let (pb, report) = levenberg_marquardt::LevenbergMarquardt::new()
+                    .with_patience(200)
+                    .minimize(pb);
+                progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+                use levenberg_marquardt::TerminationReason as T;
+                // A step that can no longer reduce the cost is a converged fit, not a failure.
+                let ok = report.termination.was_successful()
+                    || matches!(
+                        report.termination,
+                        T::LostPatience | T::NoImprovementPossible(_) | T::Orthogonal
+                    );
+                if ok && pb.model.is_some() && report.objective_function.is_finite() {
+                    Ok((pb.s.clone(), 2.0 * report.objective_function, pb.psi))
+                } else {
+                    Err(format!("{:?}", report.termination))
+                }
+            })
+            .collect();
+        let start_costs: Vec<f64> = runs
+            .iter()
+            .map(|r| r.as_ref().map_or(f64::NAN, |r| r.1))
+            .collect();
+        let reasons: Vec<String> = runs
+            .iter()
+            .filter_map(|r| r.as_ref().err().cloned())
+            .collect();
+        let (s, cost, psi) = runs
+            .into_iter()
+            .flatten()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .ok_or_else(|| {
+                CalibError::Failed(format!("no start converged: {}", reasons.join("; ")))
+            })?;
+        Ok((s, cost, psi, start_costs))
+    };
+    let starts: Vec<(DVector<f64>, Psi)> = starts.into_iter().map(|s| (s, psi0)).collect();
+    let (mut s, mut cost, mut psi, start_costs) = solve(&starts, whitening.as_ref())?;
+    let mut noise_model = None;
+    if opts.weighting == Weighting::Measured {
+        // The whole noise model at the fit; where the configuration means show a repeatable
+        // resolver error, refit from this solution with the GLS transform at its estimate,
+        // and re-estimate there (a per-row fit leaves more in the configuration means than
+        // a GLS fit does), until the estimate settles (three rounds at most).
+        let configs = config_groups(data).len();
+        let between_dof = ((6 * configs) as f64 - map.free.len() as f64 - 6.0).max(1.0);
+        let mut used = 0.0;
+        for _ in 0..3 {
+            let fitted = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, &s, psi);
+            let model = fitted
+                .model
+                .clone()
+                .ok_or_else(|| CalibError::Failed("model at the solution".into()))?
+                .with_base_from_instrument(&base::frame_from_psi(&psi))?;
+            let samples = weights::samples(data, &model, &rows);
+            let rot = *model.base_from_instrument().rotation.matrix();
+            let nm = crate::noise::estimate(&samples, &rot, between_dof, &prior)
+                .map_err(|e| CalibError::Data(e.to_string()))?;
+            let sigma = if nm.structure.shares_offsets() {
+                nm.repeatable_rad.value
             } else {
-                Err(format!("{:?}", report.termination))
+                0.0
+            };
+            let settled = (sigma - used).abs() <= 0.1 * sigma.max(used);
+            if !settled {
+                let w = weights::from_noise(data, &nm, &samples, sigma, opts.r_max);
+                let (s2, c2, p2, _) = solve(&[(s.clone(), psi)], Some(&w))?;
+                (s, cost, psi) = (s2, c2, p2);
+                whitening = Some(w);
+                used = sigma;
             }
-        })
-        .collect();
-    let start_costs: Vec<f64> = runs
-        .iter()
-        .map(|r| r.as_ref().map_or(f64::NAN, |r| r.1))
-        .collect();
-    let reasons: Vec<String> = runs
-        .iter()
-        .filter_map(|r| r.as_ref().err().cloned())
-        .collect();
-    let (s, cost, psi) = runs
-        .into_iter()
-        .flatten()
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .ok_or_else(|| CalibError::Failed(format!("no start converged: {}", reasons.join("; "))))?;
+            noise_model = Some(nm);
+            if settled {
+                break;
+            }
+        }
+    }
 
     // Final model, Jacobian, covariance.
     let fin = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, &s, psi);
@@ -805,129 +841,9 @@ pub fn calibrate(
         weak,
         start_costs,
         noise_level: noise,
+        noise: noise_model,
         psi: fin.psi,
     })
-}
-
-/// Row indices grouped by configuration id (all loads and repeats), in first-appearance
-/// order.
-fn config_groups(data: &Dataset) -> Vec<Vec<usize>> {
-    let mut ids: Vec<&str> = Vec::new();
-    let mut groups: Vec<Vec<usize>> = Vec::new();
-    for (k, r) in data.rows.iter().enumerate() {
-        match ids.iter().position(|i| *i == r.config_id) {
-            Some(g) => groups[g].push(k),
-            None => {
-                ids.push(&r.config_id);
-                groups.push(vec![k]);
-            }
-        }
-    }
-    groups
-}
-
-/// The GLS weights: σ_e from the repeat scatter of the data (pooled within configuration and
-/// load, per residual component; the sidecar's instrument noise without repeats), σ_u from
-/// the resolver uncertainty (sidecar or 0.64 arcmin) through the model's Jacobian, averaged
-/// over the configurations.
-fn whitening(data: &Dataset, model: &Model, rows: &[Prepared], r_max: f64) -> Whitening {
-    let res_arcmin = data
-        .meta
-        .as_ref()
-        .and_then(|m| m.noise)
-        .map_or(0.64, |n| n.resolver_arcmin);
-    let pos_noise = data
-        .meta
-        .as_ref()
-        .and_then(|m| m.noise)
-        .map_or(12.1e-6, |n| n.position_m);
-    // σ_e from repeats
-    let (mut ss, mut dof) = ([0.0; 6], 0usize);
-    for g in data.groups() {
-        if g.len() < 2 {
-            continue;
-        }
-        let n = g.len() as f64;
-        let mean_p = g
-            .iter()
-            .map(|&k| rows[k].meas.translation.vector)
-            .sum::<nalgebra::Vector3<f64>>()
-            / n;
-        let r0 = rows[g[0]].meas.rotation;
-        let devs: Vec<nalgebra::Vector3<f64>> = g
-            .iter()
-            .map(|&k| crate::model::rotation_log(&(rows[k].meas.rotation * r0.inverse())))
-            .collect();
-        let mean_r = devs.iter().sum::<nalgebra::Vector3<f64>>() / n;
-        for (i, &k) in g.iter().enumerate() {
-            let dp = (rows[k].meas.translation.vector - mean_p) / r_max;
-            let dr = devs[i] - mean_r;
-            for c in 0..3 {
-                ss[c] += dp[c] * dp[c];
-                ss[3 + c] += dr[c] * dr[c];
-            }
-        }
-        dof += g.len() - 1;
-    }
-    let fallback = [
-        pos_noise / 3f64.sqrt() / r_max,
-        pos_noise / 3f64.sqrt() / r_max,
-        pos_noise / 3f64.sqrt() / r_max,
-        1e-4,
-        1e-4,
-        1e-4,
-    ];
-    // Torque noise moves the modelled deflection from row to row: its repeat scatter per
-    // joint, through the (seed) stiffness and the Jacobian, adds to σ_e.
-    let (mut tss, mut tdof) = ([0.0; 6], 0usize);
-    for g in data.groups() {
-        if g.len() < 2 {
-            continue;
-        }
-        let n = g.len() as f64;
-        for j in 0..6 {
-            let mean = g.iter().map(|&k| rows[k].tau[j]).sum::<f64>() / n;
-            tss[j] += g
-                .iter()
-                .map(|&k| (rows[k].tau[j] - mean).powi(2))
-                .sum::<f64>();
-        }
-        tdof += g.len() - 1;
-    }
-    let sigma_defl: [f64; 6] = std::array::from_fn(|j| match model.stiffness(j) {
-        Some(k) if tdof > 0 => (tss[j] / tdof as f64).sqrt() / k.klin,
-        _ => 0.0,
-    });
-    // σ_u: resolver σ through the Jacobian; both averaged over the rows' configurations
-    let sr = res_arcmin * crate::accuracy::ARCMIN;
-    let (mut acc, mut tacc) = ([0.0; 6], [0.0; 6]);
-    for r in rows {
-        let j = model.jacobian(&model.link_from_motor(&r.q, &r.tau));
-        for c in 0..6 {
-            let scale = if c < 3 { 1.0 / r_max } else { 1.0 };
-            acc[c] += (0..6)
-                .map(|k| (j[(c, k)] * sr * scale).powi(2))
-                .sum::<f64>();
-            tacc[c] += (0..6)
-                .map(|k| (j[(c, k)] * sigma_defl[k] * scale).powi(2))
-                .sum::<f64>();
-        }
-    }
-    let n = rows.len().max(1) as f64;
-    let sigma_e: [f64; 6] = std::array::from_fn(|c| {
-        let pose = if dof > 0 {
-            (ss[c] / dof as f64).sqrt().max(fallback[c] * 1e-3)
-        } else {
-            fallback[c]
-        };
-        (pose * pose + tacc[c] / n).sqrt()
-    });
-    let sigma_u: [f64; 6] = std::array::from_fn(|c| (acc[c] / n).sqrt().max(1e-12));
-    Whitening {
-        groups: config_groups(data),
-        sigma_e,
-        sigma_u,
-    }
 }
 
 /// Residual noise per component (paper units): instrument noise and the resolver floor

@@ -6,3 +6,4 @@ pub mod collect;
 pub mod dataset;
 pub mod fit;
 pub mod report;
+pub(crate) mod weights;

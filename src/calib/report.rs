@@ -79,6 +79,8 @@ pub struct Report {
     pub epsilon: f64,
     /// Weighting used.
     pub weighting: super::fit::Weighting,
+    /// The noise the data show (with the measured weighting).
+    pub noise: Option<crate::noise::NoiseModel>,
     /// Linear-only fit.
     pub linear_only: bool,
     /// Seconds the fits took.
@@ -210,6 +212,7 @@ pub fn run(
         start_costs: result.start_costs.clone(),
         epsilon: opts.epsilon,
         weighting: opts.weighting,
+        noise: result.noise.clone(),
         linear_only: opts.linear_only,
         elapsed_s,
     };

@@ -461,9 +461,11 @@ fn problem(
                     cell: cell_id,
                     q: o.q,
                     tau: o.tau,
-                    residual: effects::residual(state, &geom, o),
+                    // The estimator takes measured − predicted and ∂pred/∂τ; discovery's
+                    // residuals are predicted − measured and its sensitivity ∂r/∂τ.
+                    residual: -effects::residual(state, &geom, o),
                     jq: jac[i],
-                    jt: sens[i],
+                    jt: -sens[i],
                 });
             }
             cell_id += 1;

@@ -273,7 +273,10 @@ fn measure(a: &MeasureArgs) -> Result<()> {
 /// Row weighting choice on the command line.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum WeightingArg {
-    /// Generalised least squares for repeatable resolver errors (default).
+    /// From the noise the data show: reading noise, repeatable error, instrument and
+    /// torque noise estimated from the repeats (default).
+    Measured,
+    /// Generalised least squares assuming a repeatable resolver error of the sidecar's σ.
     Gls,
     /// The paper's cost exactly.
     Paper,
@@ -304,7 +307,7 @@ pub struct CalibrateArgs {
     #[arg(long, default_value_t = 0.0)]
     epsilon: f64,
     /// Row weighting.
-    #[arg(long, value_enum, default_value = "gls")]
+    #[arg(long, value_enum, default_value = "measured")]
     weighting: WeightingArg,
     /// Number of starts (multi-start).
     #[arg(long, default_value_t = 4)]
@@ -374,6 +377,7 @@ pub fn calibrate(a: &CalibrateArgs) -> Result<()> {
         inner_configs,
         torque_constants,
         weighting: match a.weighting {
+            WeightingArg::Measured => Weighting::Measured,
             WeightingArg::Gls => Weighting::Gls,
             WeightingArg::Paper => Weighting::Paper,
         },
@@ -426,6 +430,21 @@ fn print_report(r: &Report, out: &Path) -> Result<()> {
         },
         r.elapsed_s
     )?;
+    if let Some(n) = &r.noise {
+        writeln!(o, "{}", n.summary())?;
+        if let Some(a) = &n.assumption {
+            writeln!(o, "  assumed: {a}")?;
+        }
+        writeln!(
+            o,
+            "  weights: {}",
+            if n.structure.shares_offsets() {
+                "GLS with the repeatable error the configuration means show"
+            } else {
+                "per row (no repeatable error shows between configurations)"
+            }
+        )?;
+    }
     writeln!(
         o,
         "\ncalibration set      before (nominal)                 after"
