@@ -684,6 +684,14 @@ pub fn repeatable(samples: &[Sample], model: &NoiseModel, dof: f64) -> (Interval
     )
 }
 
+/// `m^power` of a symmetric positive semi-definite 6×6 matrix (eigenvalues floored at
+/// 1e-300): the inverse, square root and inverse square root that whitening needs.
+pub fn sym_pow(m: &Matrix6<f64>, power: f64) -> Matrix6<f64> {
+    let e = nalgebra::SymmetricEigen::new(*m);
+    let d = e.eigenvalues.map(|v| v.max(1e-300).powf(power));
+    e.eigenvectors * Matrix6::from_diagonal(&d) * e.eigenvectors.transpose()
+}
+
 /// Rotation vector of `r` relative to `r0` (for callers building orientation residuals).
 pub fn rotation_deviation(r: &Matrix3<f64>, r0: &Matrix3<f64>) -> Vector3<f64> {
     let m = nalgebra::Rotation3::from_matrix_unchecked(r * r0.transpose());

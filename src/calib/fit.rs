@@ -45,7 +45,8 @@ pub struct CalibOptions {
     /// A scaled direction whose standard error exceeds this (in tolerances, or log-units of
     /// stiffness) is regularised.
     pub weak_threshold: f64,
-    /// Configurations for the inner level; the sidecar's, else 8 chosen automatically.
+    /// Configurations for the inner level; the sidecar's, else every unloaded configuration
+    /// with [`Weighting::Measured`] and 8 chosen automatically with the others.
     pub inner_configs: Option<Vec<String>>,
     /// Starting stiffness (Klin N·m/rad, Kcub N·m/rad³) of J2, J3, J5 when the model has
     /// none; also the centre of the stiffness prior.
@@ -292,6 +293,12 @@ pub(crate) fn choose_inner(data: &Dataset, opts: &CalibOptions) -> Result<Vec<St
             ids.len()
         )));
     }
+    // With the measured weighting, rows of a configuration may share a resolver offset that
+    // GLS discounts: a base frame placed on eight configurations would carry their offsets
+    // into every prediction, so the inner level uses every unloaded configuration.
+    if opts.weighting == Weighting::Measured {
+        return Ok(ids.into_iter().map(|(i, _)| i).collect());
+    }
     let mut chosen = vec![0usize];
     while chosen.len() < 8.min(ids.len()) {
         let next = (0..ids.len())
@@ -448,7 +455,7 @@ impl<'a> Outer<'a> {
         if self.opts.epsilon > 0.0 {
             // ε is defined against the paper's units; whitened residuals are in units of
             // the position noise, so scale it alike.
-            let unit = self.whiten.map_or(1.0, |w| w.sigma_e[0]);
+            let unit = self.whiten.map_or(1.0, Whitening::unit);
             let w = self.opts.epsilon.sqrt() / unit;
             for (c, &i) in self.map.free.iter().enumerate() {
                 if i < IDX_KLIN {
@@ -776,8 +783,16 @@ pub fn calibrate(
             let model = fitted
                 .model
                 .clone()
-                .ok_or_else(|| CalibError::Failed("model at the solution".into()))?
-                .with_base_from_instrument(&base::frame_from_psi(&psi))?;
+                .ok_or_else(|| CalibError::Failed("model at the solution".into()))?;
+            // The inner level places the base on its few configurations; the noise of the
+            // configuration means is judged with the base fitted to all of them, so that
+            // the inner configurations' own errors are not counted as resolver error.
+            let pairs: Vec<(Frame, Frame)> = rows
+                .iter()
+                .map(|r| (model.fk(&model.link_from_motor(&r.q, &r.tau)), r.meas))
+                .collect();
+            let (psi_all, _) = base::fit_psi(&pairs, &psi, opts.r_max);
+            let model = model.with_base_from_instrument(&base::frame_from_psi(&psi_all))?;
             let samples = weights::samples(data, &model, &rows);
             let rot = *model.base_from_instrument().rotation.matrix();
             let nm = crate::noise::estimate(&samples, &rot, between_dof, &prior)

@@ -9,37 +9,82 @@ use nalgebra::{DMatrix, Matrix6, Vector6};
 use super::dataset::Dataset;
 use super::fit::Prepared;
 use crate::model::{Model, pose_error};
-use crate::noise::{NoiseModel, Prior, Sample};
+use crate::noise::{NoiseModel, Prior, Sample, sym_pow};
 
-/// The GLS transform: per configuration group, per residual component,
-/// `r'_k = (r_k − (1 − w)·r̄) / σ_e` with `w² = σ_e² / (σ_e² + n·σ_u²)`.
+/// The GLS transform of rows that share a configuration's random offset: per group, rows
+/// with independent noise `D_k` (6×6, paper units) and a shared offset `S`:
+/// `r'_k = D_k^{-1/2}·(r_k − (I − Λ)·m̂)` with `m̂ = P⁻¹·Σ D_k⁻¹ r_k` the precision-weighted
+/// mean, `P = Σ D_k⁻¹` and `Λ = P^{-1/2}·(P⁻¹ + S)^{-1/2}`. Its sum of squares is the exact
+/// GLS cost `Σ (r_k − m̂)ᵀD_k⁻¹(r_k − m̂) + m̂ᵀ(P⁻¹ + S)⁻¹m̂`: the cross term vanishes
+/// because the weighted deviations sum to zero, and `ΛᵀPΛ = (P⁻¹ + S)⁻¹`.
 #[derive(Debug, Clone)]
 pub(crate) struct Whitening {
     /// Row indices of each configuration.
     pub groups: Vec<Vec<usize>>,
-    /// Per residual component (3 position, 3 orientation): σ_e, σ_u (paper units).
-    pub sigma_e: [f64; 6],
-    pub sigma_u: [f64; 6],
+    /// Per row: `D_k⁻¹` and `D_k^{-1/2}`.
+    d_inv: Vec<Matrix6<f64>>,
+    d_inv_sqrt: Vec<Matrix6<f64>>,
+    /// Per group: `P⁻¹` and `I − Λ`.
+    p_inv: Vec<Matrix6<f64>>,
+    shrink: Vec<Matrix6<f64>>,
+    /// Typical position noise (paper units): the unit of whitened residuals.
+    unit: f64,
 }
 
 impl Whitening {
+    /// The transform for row covariances `d` and group offsets `s` (paper units).
+    pub fn new(groups: Vec<Vec<usize>>, d: &[Matrix6<f64>], s: &[Matrix6<f64>]) -> Self {
+        let d_inv: Vec<Matrix6<f64>> = d.iter().map(|m| sym_pow(m, -1.0)).collect();
+        let d_inv_sqrt = d.iter().map(|m| sym_pow(m, -0.5)).collect();
+        let (p_inv, shrink) = groups
+            .iter()
+            .zip(s)
+            .map(|(g, s)| {
+                let p = g.iter().map(|&k| d_inv[k]).sum::<Matrix6<f64>>();
+                let p_inv = sym_pow(&p, -1.0);
+                let lambda = sym_pow(&p, -0.5) * sym_pow(&(p_inv + s), -0.5);
+                (p_inv, Matrix6::identity() - lambda)
+            })
+            .unzip();
+        let n = d.len().max(1) as f64;
+        let unit = (d.iter().map(|m| m[(0, 0)]).sum::<f64>() / n).sqrt();
+        Self {
+            groups,
+            d_inv,
+            d_inv_sqrt,
+            p_inv,
+            shrink,
+            unit,
+        }
+    }
+
     /// Applies the transform to the 6-per-row block of `m` (rows 0…6·n), in place; `cols`
     /// columns (1 for a residual vector).
     pub fn apply(&self, m: &mut DMatrix<f64>) {
-        let cols = m.ncols();
-        for g in &self.groups {
-            let n = g.len() as f64;
-            for c in 0..6 {
-                let (se, su) = (self.sigma_e[c], self.sigma_u[c]);
-                let w = (se * se / (se * se + n * su * su)).sqrt();
-                for col in 0..cols {
-                    let mean = g.iter().map(|&k| m[(6 * k + c, col)]).sum::<f64>() / n;
-                    for &k in g {
-                        m[(6 * k + c, col)] = (m[(6 * k + c, col)] - (1.0 - w) * mean) / se;
+        for (gi, g) in self.groups.iter().enumerate() {
+            for col in 0..m.ncols() {
+                let r = |k: usize| Vector6::from_fn(|c, _| m[(6 * k + c, col)]);
+                let mean = self.p_inv[gi]
+                    * g.iter()
+                        .map(|&k| self.d_inv[k] * r(k))
+                        .sum::<Vector6<f64>>();
+                let shift = self.shrink[gi] * mean;
+                let out: Vec<Vector6<f64>> = g
+                    .iter()
+                    .map(|&k| self.d_inv_sqrt[k] * (r(k) - shift))
+                    .collect();
+                for (&k, v) in g.iter().zip(&out) {
+                    for c in 0..6 {
+                        m[(6 * k + c, col)] = v[c];
                     }
                 }
             }
         }
+    }
+
+    /// The position noise of a typical row (paper units): the unit of whitened residuals.
+    pub fn unit(&self) -> f64 {
+        self.unit
     }
 }
 
@@ -157,11 +202,11 @@ pub(crate) fn whitening(data: &Dataset, model: &Model, rows: &[Prepared], r_max:
         (pose * pose + tacc[c] / n).sqrt()
     });
     let sigma_u: [f64; 6] = std::array::from_fn(|c| (acc[c] / n).sqrt().max(1e-12));
-    Whitening {
-        groups: config_groups(data),
-        sigma_e,
-        sigma_u,
-    }
+    let groups = config_groups(data);
+    let d = Matrix6::from_diagonal(&Vector6::from_fn(|c, _| sigma_e[c] * sigma_e[c]));
+    let s = Matrix6::from_diagonal(&Vector6::from_fn(|c, _| sigma_u[c] * sigma_u[c]));
+    let n = groups.len();
+    Whitening::new(groups, &vec![d; rows.len()], &vec![s; n])
 }
 
 /// The noise samples of `rows` at `model` (its base frame placing the measurements):
@@ -226,10 +271,10 @@ pub(crate) fn prior(data: &Dataset) -> Prior {
     }
 }
 
-/// The GLS transform from a noise model: per residual component, `σ_e²` the mean over rows
-/// of the row covariance (instrument, reading noise and torque noise through the model)
-/// and `σ_u²` the repeatable error `sigma_rep` (rad) through the Jacobian, both in paper
-/// units. With `sigma_rep = 0` this is per-row weighting.
+/// The GLS transform from a noise model: per row its full covariance (instrument, reading
+/// noise and torque noise through the model), per configuration the repeatable error
+/// `sigma_rep` (rad) through its mean Jacobian; paper units. With `sigma_rep = 0` this is
+/// per-row weighting.
 pub(crate) fn from_noise(
     data: &Dataset,
     noise: &NoiseModel,
@@ -237,24 +282,22 @@ pub(crate) fn from_noise(
     sigma_rep: f64,
     r_max: f64,
 ) -> Whitening {
-    let n = samples.len().max(1) as f64;
-    let (mut e, mut u) = ([0.0; 6], [0.0; 6]);
-    for s in samples {
-        let d: Matrix6<f64> = noise.row_covariance(&s.jq, &s.jt, &s.tau);
-        let sh = NoiseModel::shared_covariance(&s.jq, sigma_rep);
-        for c in 0..6 {
-            let k = if c < 3 { 1.0 / (r_max * r_max) } else { 1.0 };
-            e[c] += d[(c, c)] * k / n;
-            u[c] += sh[(c, c)] * k / n;
-        }
-    }
-    Whitening {
-        groups: config_groups(data),
-        sigma_e: e.map(|v| v.sqrt().max(1e-15)),
-        sigma_u: u.map(|v| v.sqrt().max(1e-15)),
-    }
+    let k = Matrix6::from_diagonal(&Vector6::from_fn(
+        |c, _| {
+            if c < 3 { 1.0 / r_max } else { 1.0 }
+        },
+    ));
+    let d: Vec<Matrix6<f64>> = samples
+        .iter()
+        .map(|s| k * noise.row_covariance(&s.jq, &s.jt, &s.tau) * k)
+        .collect();
+    let groups = config_groups(data);
+    let shared: Vec<Matrix6<f64>> = groups
+        .iter()
+        .map(|g| {
+            let jq = g.iter().map(|&i| samples[i].jq).sum::<Matrix6<f64>>() / g.len() as f64;
+            k * NoiseModel::shared_covariance(&jq, sigma_rep) * k
+        })
+        .collect();
+    Whitening::new(groups, &d, &shared)
 }
-
-/// Unused-import guard for the vector types the transform works on.
-#[allow(dead_code)]
-fn _types(_: DMatrix<f64>, _: Vector6<f64>) {}

@@ -14,6 +14,8 @@
 //! correct model.
 
 use nalgebra::{DMatrix, DVector, Matrix6, SymmetricEigen, Vector6};
+
+use crate::noise::sym_pow as inv_pow;
 use rayon::prelude::*;
 
 use super::effects::{Obs, Slot, State, residual};
@@ -255,13 +257,6 @@ pub(crate) fn cost_at(
         .map(|&i| white[i].powi(2))
         .sum::<f64>()
         + u.sum::<f64>())
-}
-
-/// `m^power` of a symmetric positive definite matrix (eigenvalues floored).
-fn inv_pow(m: &Matrix6<f64>, power: f64) -> Matrix6<f64> {
-    let e = SymmetricEigen::new(*m);
-    let d = e.eigenvalues.map(|v| v.max(1e-300).powf(power));
-    e.eigenvectors * Matrix6::from_diagonal(&d) * e.eigenvectors.transpose()
 }
 
 /// Residuals and scaled Jacobian at a state.

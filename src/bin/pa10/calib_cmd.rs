@@ -316,7 +316,8 @@ pub struct CalibrateArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Inner-level configurations: `all` (every unloaded one) or a comma-separated id list;
-    /// default: the sidecar's, else 8 spread-out ones.
+    /// default: the sidecar's, else every unloaded one with the measured weighting and 8
+    /// spread-out ones with the others.
     #[arg(long, value_name = "all|ID,…")]
     inner_configs: Option<String>,
     /// Motor current → joint torque constants, N·m/A, six comma-separated (for `i1..i6` data).
