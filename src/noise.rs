@@ -22,7 +22,8 @@
 //!   (Viechtbauer 2007) and the test of `σ = 0`: `P(χ²_dof > Q(0))`.
 //!
 //! The structure (reading noise, repeatable error, both, instrument only) is chosen by
-//! those likelihood tests at α = 0.01. Without repeats the within-cell components cannot be
+//! those likelihood tests at α = 0.01; a repeatable error must also be material (≥ 35 % of
+//! the resolver's scale) to count. Without repeats the within-cell components cannot be
 //! measured: the prior (sidecar) instrument noise and resolver σ are taken, the resolver
 //! error as independent per row, and the report says so.
 //!
@@ -38,6 +39,10 @@ use crate::stats::{chi2_quantile, chi2_sf};
 
 /// Significance level of the structure tests.
 pub const ALPHA: f64 = 0.01;
+
+/// Share of the resolver's scale (the larger of the reading noise and the prior σ) a
+/// repeatable error must reach to count in the structure (see [`estimate`]).
+pub const MATERIAL: f64 = 0.35;
 
 /// Within-cell degrees of freedom below which the repeats are too few to measure noise.
 pub const MIN_WITHIN_DOF: usize = 10;
@@ -300,10 +305,23 @@ pub fn estimate(
     model.repeatable_rad = rep;
     model.repeatable_p = p;
     model.between_dof = between_dof;
+    // A repeatable error counts when it is significant *and* material: at least
+    // `MATERIAL` of the larger of the reading noise and the prior resolver σ. A fit that is
+    // not exactly the generalised least-squares optimum (a prior on the stiffness, the
+    // paper's inner level) leaves a small between-configuration excess that the Q test,
+    // with its hundreds of degrees of freedom, would otherwise call an offset.
+    let reading_rms = (model
+        .reading_rad
+        .iter()
+        .map(|i| i.value * i.value)
+        .sum::<f64>()
+        / 6.0)
+        .sqrt();
+    let material = rep.value >= MATERIAL * reading_rms.max(prior.resolver_rad);
     model.structure = if model.within_dof < MIN_WITHIN_DOF {
         Structure::Assumed
     } else {
-        match (model.reading_p < ALPHA, p < ALPHA) {
+        match (model.reading_p < ALPHA, p < ALPHA && material) {
             (true, true) => Structure::Both,
             (true, false) => Structure::Reading,
             (false, true) => Structure::Repeatable,

@@ -26,3 +26,200 @@ fn dump_sets() {
         }
     }
 }
+
+use pa10::calib::dataset::Dataset;
+use pa10::calib::fit::{CalibOptions, calibrate, evaluate};
+use pa10::discover::{DiscoverOptions, Discovery, discover};
+use pa10::model::Model;
+use pa10::noise::Structure;
+
+const ARCMIN: f64 = std::f64::consts::PI / (180.0 * 60.0);
+
+/// Writes `set` to a fresh temporary directory and loads it back (sidecar included).
+fn load(set: &indep::Set, tag: &str) -> (Dataset, Dataset) {
+    let dir = std::env::temp_dir().join(format!("pa10-indep-{tag}-{}", std::process::id()));
+    let (cal, val) = write(set, &dir);
+    let out = (Dataset::load(&cal).unwrap(), Dataset::load(&val).unwrap());
+    let _ = std::fs::remove_dir_all(&dir);
+    out
+}
+
+fn calibrated(cal: &Dataset) -> pa10::calib::fit::CalibResult {
+    calibrate(
+        &Model::nominal(),
+        cal,
+        None,
+        &CalibOptions::default(),
+        &|_| {},
+    )
+    .unwrap()
+}
+
+fn within(est: f64, truth: f64, tol: f64) -> bool {
+    (est / truth - 1.0).abs() <= tol
+}
+
+/// The noise estimator recovers every component within 20 % and names the structure, on
+/// each family (at discovery's generalised least-squares fit of the calibrated model: the
+/// calibration's own estimate of the repeatable part runs ~20 % high, its fit being the
+/// paper's two-level one with a stiffness prior, not the GLS optimum); calibration names the
+/// same structure and validates within 1.15× of the generator's own floor.
+#[test]
+fn noise_is_measured_and_calibration_reaches_the_floor_on_every_family() {
+    for fam in families() {
+        let set = generate(&Spec::paper(11, fam));
+        let (cal, val) = load(&set, fam.name);
+        let res = calibrated(&cal);
+        let expect = match (fam.reading_rad > 0.0, fam.repeatable_rad > 0.0) {
+            (true, true) => Structure::Both,
+            (true, false) => Structure::Reading,
+            (false, true) => Structure::Repeatable,
+            (false, false) => Structure::InstrumentOnly,
+        };
+        let nc = res.noise.as_ref().unwrap();
+        assert_eq!(
+            nc.structure,
+            expect,
+            "calibrate, {}: {}",
+            fam.name,
+            nc.summary()
+        );
+        let d = discovered(&set, &res.model, fam.name);
+        let n = &d.noise_after.model;
+        let s = n.summary();
+        assert_eq!(n.structure, expect, "{}: {s}", fam.name);
+        for j in 0..6 {
+            let r = n.reading_rad[j].value;
+            if fam.reading_rad > 0.0 {
+                assert!(within(r, fam.reading_rad, 0.2), "{}: {s}", fam.name);
+            } else {
+                assert!(r < 0.05 * ARCMIN, "{}: {s}", fam.name);
+            }
+        }
+        if fam.repeatable_rad > 0.0 {
+            assert!(
+                within(n.repeatable_rad.value, fam.repeatable_rad, 0.2),
+                "{}: {s}",
+                fam.name
+            );
+        }
+        for a in 0..3 {
+            assert!(
+                within(n.instrument_position_m[a].value, fam.instrument_m[a], 0.2),
+                "{}: {s}",
+                fam.name
+            );
+            assert!(
+                within(
+                    n.instrument_orientation_rad[a].value,
+                    fam.instrument_rad[a],
+                    0.2
+                ),
+                "{}: {s}",
+                fam.name
+            );
+        }
+        // Validation against the generator's floor, averaged over three sets (one set's
+        // 90 validation rows scatter by a few per cent).
+        let mut ratio = validation_mean(&res.model, &val) / set.val_floor_mm;
+        for seed in [21, 31] {
+            let set = generate(&Spec::paper(seed, fam));
+            let (cal, val) = load(&set, fam.name);
+            ratio += validation_mean(&calibrated(&cal).model, &val) / set.val_floor_mm;
+        }
+        ratio /= 3.0;
+        assert!(
+            ratio <= 1.15,
+            "{}: validation {ratio:.3}× the floor",
+            fam.name
+        );
+    }
+}
+
+fn validation_mean(model: &Model, val: &Dataset) -> f64 {
+    let summaries = evaluate(model, val, None).unwrap();
+    summaries.iter().map(|s| s.mean_mm).sum::<f64>() / summaries.len() as f64
+}
+
+/// Without repeats the structure cannot be measured: it is assumed, said, and calibration
+/// still works.
+#[test]
+fn sets_without_repeats_calibrate_on_a_stated_assumption() {
+    let fam = families()[0];
+    let set = generate(&Spec {
+        repeats: 1,
+        ..Spec::paper(12, fam)
+    });
+    let (cal, val) = load(&set, "norepeat");
+    let res = calibrated(&cal);
+    let n = res.noise.as_ref().unwrap();
+    assert_eq!(n.structure, Structure::Assumed);
+    assert!(
+        n.assumption
+            .as_deref()
+            .unwrap()
+            .contains("cannot be measured")
+    );
+    let mean = validation_mean(&res.model, &val);
+    assert!(
+        mean <= 1.4 * set.val_floor_mm,
+        "{mean} vs {}",
+        set.val_floor_mm
+    );
+}
+
+fn discovered(set: &indep::Set, start: &Model, tag: &str) -> Discovery {
+    let (cal, val) = load(set, tag);
+    discover(start, &cal, Some(&val), &DiscoverOptions::default()).unwrap()
+}
+
+/// On clean sets of every family, discovery from the calibrated model names nothing.
+#[test]
+fn discovery_names_nothing_on_clean_independent_sets() {
+    for fam in families() {
+        let set = generate(&Spec::paper(13, fam));
+        let (cal, _) = load(&set, "clean-cal");
+        let start = calibrated(&cal).model;
+        let d = discovered(&set, &start, fam.name);
+        assert!(
+            d.effects.is_empty(),
+            "{}: named {:?}",
+            fam.name,
+            d.effects.iter().map(|e| &e.label).collect::<Vec<_>>()
+        );
+        assert!(
+            d.gap_after_mm <= 1.25 * d.noise_floor_mm,
+            "{}: {} vs floor {}",
+            fam.name,
+            d.gap_after_mm,
+            d.noise_floor_mm
+        );
+    }
+}
+
+/// A J4 spring the paper's model lacks is named on J4, on every family.
+#[test]
+fn discovery_names_a_hidden_j4_spring_on_every_family() {
+    for fam in families() {
+        let set = generate(&Spec {
+            hidden: Hidden::SpringJ4(4000.0),
+            ..Spec::paper(14, fam)
+        });
+        let (cal, _) = load(&set, "j4-cal");
+        let start = calibrated(&cal).model;
+        let d = discovered(&set, &start, fam.name);
+        let labels: Vec<&str> = d.effects.iter().map(|e| e.label.as_str()).collect();
+        assert_eq!(
+            labels.first(),
+            Some(&"joint_compliance_linear[J4]"),
+            "{}",
+            fam.name
+        );
+        let c = d.effects[0].params["compliance"];
+        assert!(
+            (c * 4000.0 - 1.0).abs() < 0.1,
+            "{}: compliance {c}",
+            fam.name
+        );
+    }
+}

@@ -797,18 +797,25 @@ pub fn calibrate(
             let rot = *model.base_from_instrument().rotation.matrix();
             let nm = crate::noise::estimate(&samples, &rot, between_dof, &prior)
                 .map_err(|e| CalibError::Data(e.to_string()))?;
+            // Between-configuration variance beyond the resolver's specification is a
+            // misfit (a missing effect), not noise: the weights use at most the prior.
             let sigma = if nm.structure.shares_offsets() {
-                nm.repeatable_rad.value
+                nm.repeatable_rad.value.min(prior.resolver_rad)
             } else {
                 0.0
             };
-            let settled = (sigma - used).abs() <= 0.1 * sigma.max(used);
+            let mut settled = (sigma - used).abs() <= 0.1 * sigma.max(used);
             if !settled {
                 let w = weights::from_noise(data, &nm, &samples, sigma, opts.r_max);
-                let (s2, c2, p2, _) = solve(&[(s.clone(), psi)], Some(&w))?;
-                (s, cost, psi) = (s2, c2, p2);
-                whitening = Some(w);
-                used = sigma;
+                match solve(&[(s.clone(), psi)], Some(&w)) {
+                    Ok((s2, c2, p2, _)) => {
+                        (s, cost, psi) = (s2, c2, p2);
+                        whitening = Some(w);
+                        used = sigma;
+                    }
+                    // Keep the solution on the weights that converged.
+                    Err(_) => settled = true,
+                }
             }
             noise_model = Some(nm);
             if settled {
