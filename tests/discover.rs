@@ -312,14 +312,11 @@ fn hidden_thermal_expansion_of_the_forearm_is_named() {
 fn two_hidden_effects_are_found_in_order_of_size() {
     let d = run("j4-and-backlash", 16);
     assert!(d.effects[0].gain_mm > d.effects[1].gain_mm);
-    assert_eq!(d.effects.len(), 2);
-    // Two acceptances, then either the lack of fit is gone (the selection stops) or a
-    // final step accepts nothing.
-    match d.steps.len() {
-        2 => assert!(d.lack_of_fit_after.p_value >= 0.01),
-        3 => assert!(d.steps[2].accepted.is_none()),
-        n => panic!("{n} steps"),
-    }
+    assert_eq!(d.effects.len(), 2, "{:?}", d.effects);
+    // Two acceptances, then (the repeatable resolver error keeps the search open) steps
+    // that accept nothing, library and generic.
+    assert!(d.steps.iter().skip(2).all(|s| s.accepted.is_none()));
+    assert!(d.gap_closed, "{}", d.verdict);
 }
 
 #[test]
@@ -329,9 +326,12 @@ fn nothing_is_named_when_nothing_is_hidden() {
     for seed in 21..=24 {
         let d = run("none", seed);
         assert!(d.lack_of_fit_before.p_value > 0.01);
-        // No significant gap: the selection does not even start, the model is unchanged.
-        assert!(d.steps.is_empty());
+        // No significant gap. The simulator's repeatable resolver error opens the search
+        // (it could hide an effect of the configuration), and nothing passes it.
+        assert!(d.effects.is_empty(), "{:?}", d.effects);
+        assert!(d.steps.iter().all(|s| s.accepted.is_none()));
         assert_eq!(d.gap_after_mm, d.gap_before_mm);
+        assert!(d.gap_closed, "{}", d.verdict);
     }
 }
 

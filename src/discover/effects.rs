@@ -59,11 +59,37 @@ pub enum Kind {
     BaseFrameError,
     /// A DH departure the model does not fit.
     GeometricDeparture,
+    /// Outside the library: one term `δq = c·φ` of a sparse dictionary per joint (φ: q²,
+    /// q³, sin q, cos q, sin 2q, cos 2q of the joint's angle, or its approach direction),
+    /// tried only when the library is exhausted and the lack of fit stays significant.
+    Generic,
 }
+
+/// The generic dictionary of one joint: the functions `φ` of [`Kind::Generic`] with the
+/// joint-error slot that holds each coefficient, its name and unit.
+pub const GENERIC_BASIS: [(&str, usize, &str, &str); 7] = [
+    ("q²", 11, "quadratic in its angle", "rad/rad²"),
+    ("q³", 12, "cubic in its angle", "rad/rad³"),
+    ("sin q", 0, "once per revolution of its angle (sin)", "rad"),
+    ("cos q", 1, "once per revolution of its angle (cos)", "rad"),
+    (
+        "sin 2q",
+        2,
+        "twice per revolution of its angle (sin)",
+        "rad",
+    ),
+    (
+        "cos 2q",
+        3,
+        "twice per revolution of its angle (cos)",
+        "rad",
+    ),
+    ("dir", 10, "the approach direction", "rad"),
+];
 
 impl Kind {
     /// Every kind, in library order.
-    pub const ALL: [Kind; 11] = [
+    pub const ALL: [Kind; 12] = [
         Kind::JointComplianceLinear,
         Kind::JointComplianceCubic,
         Kind::TransmissionError,
@@ -75,6 +101,7 @@ impl Kind {
         Kind::ToolOffsetError,
         Kind::BaseFrameError,
         Kind::GeometricDeparture,
+        Kind::Generic,
     ];
 
     /// The stable machine name (used in JSON, model files and on the command line).
@@ -91,6 +118,7 @@ impl Kind {
             Kind::ToolOffsetError => "tool_offset_error",
             Kind::BaseFrameError => "base_frame_error",
             Kind::GeometricDeparture => "geometric_departure",
+            Kind::Generic => "generic",
         }
     }
 
@@ -125,6 +153,9 @@ impl Kind {
             Kind::ToolOffsetError => "flange → target translation error (m, flange frame)",
             Kind::BaseFrameError => "instrument → base frame error (m, rad)",
             Kind::GeometricDeparture => "a DH departure the model keeps fixed (m or rad)",
+            Kind::Generic => {
+                "an unnamed term outside the library: the link angle off by c·φ (rad), φ a function of the joint's angle or its approach direction"
+            }
         }
     }
 }
@@ -136,7 +167,8 @@ pub struct Effect {
     pub kind: Kind,
     /// Zero-based joint / DH row for per-joint and per-link kinds; for
     /// [`Kind::GeometricDeparture`] the index 0…23 of the departure in the
-    /// [`ParamVector`](crate::model::ParamVector) layout; `None` for whole-arm kinds.
+    /// [`ParamVector`](crate::model::ParamVector) layout; for [`Kind::Generic`]
+    /// `joint + 6·b` with `b` the index in [`GENERIC_BASIS`]; `None` for whole-arm kinds.
     pub target: Option<usize>,
 }
 
@@ -156,8 +188,8 @@ fn spec(name: &str, unit: &'static str) -> ParamSpec {
     }
 }
 
-/// Names of the joint-error components addressed by [`Slot::JointErr`] 0…10.
-pub const JOINT_ERROR_PARAMS: [&str; 11] = [
+/// Names of the joint-error components addressed by [`Slot::JointErr`] 0…12.
+pub const JOINT_ERROR_PARAMS: [&str; 13] = [
     "out1_sin",
     "out1_cos",
     "out2_sin",
@@ -169,6 +201,8 @@ pub const JOINT_ERROR_PARAMS: [&str; 11] = [
     "ecc_sin",
     "ecc_cos",
     "backlash",
+    "poly2",
+    "poly3",
 ];
 
 impl Effect {
@@ -176,7 +210,7 @@ impl Effect {
     /// of the DH parameter).
     pub fn joint(&self) -> Option<usize> {
         match self.kind {
-            Kind::GeometricDeparture => self.target.map(|i| i % 6 + 1),
+            Kind::GeometricDeparture | Kind::Generic => self.target.map(|i| i % 6 + 1),
             _ => self.target.map(|j| j + 1),
         }
     }
@@ -186,6 +220,14 @@ impl Effect {
         match (self.kind, self.target) {
             (Kind::GeometricDeparture, Some(i)) => {
                 format!("{}[{}]", self.kind.name(), crate::model::param_names()[i])
+            }
+            (Kind::Generic, Some(i)) => {
+                format!(
+                    "{}[J{}: {}]",
+                    self.kind.name(),
+                    i % 6 + 1,
+                    GENERIC_BASIS[i / 6].0
+                )
             }
             (Kind::ThermalExpansion | Kind::LinkBending, Some(j)) => {
                 format!("{}[link {}]", self.kind.name(), j + 1)
@@ -210,7 +252,17 @@ impl Effect {
             Kind::ToolOffsetError => (0..3).map(Slot::Tool).collect(),
             Kind::BaseFrameError => (0..6).map(Slot::Base).collect(),
             Kind::GeometricDeparture => vec![Slot::Dep(t)],
+            Kind::Generic => vec![Slot::JointErr(t % 6, GENERIC_BASIS[t / 6].1)],
         }
+    }
+
+    /// For a generic term: "δq2 ≈ c·q2² rad on J2, quadratic in its angle" at coefficient
+    /// `c`; `None` for library effects.
+    pub fn generic_form(&self, c: f64) -> Option<String> {
+        let i = self.target.filter(|_| self.kind == Kind::Generic)?;
+        let (j, (phi, _, words, _)) = (i % 6 + 1, GENERIC_BASIS[i / 6]);
+        let phi = phi.replace('q', &format!("q{j}"));
+        Some(format!("δq{j} ≈ {c:.3e}·{phi} rad on J{j}, {words}"))
     }
 
     /// Its parameters, with units (`thermal_per_kelvin`: whether the data carry
@@ -245,6 +297,10 @@ impl Effect {
                     crate::model::param_units()[i],
                 )]
             }
+            Kind::Generic => {
+                let b = self.target.unwrap_or(0) / 6;
+                vec![spec("coefficient", GENERIC_BASIS[b].3)]
+            }
         }
     }
 
@@ -260,6 +316,7 @@ impl Effect {
                 | Kind::ToolOffsetError
                 | Kind::BaseFrameError
                 | Kind::GeometricDeparture
+                | Kind::Generic
         )
     }
 }
@@ -488,6 +545,7 @@ fn je_ref(e: &JointError, k: usize) -> &f64 {
         0..=3 => &e.output[k / 2][k % 2],
         4..=7 => &e.wave[(k - 4) / 2][k % 2],
         8 | 9 => &e.eccentricity[k - 8],
+        11 | 12 => &e.polynomial[k - 11],
         _ => &e.backlash,
     }
 }
@@ -497,6 +555,7 @@ fn je_mut(e: &mut JointError, k: usize) -> &mut f64 {
         0..=3 => &mut e.output[k / 2][k % 2],
         4..=7 => &mut e.wave[(k - 4) / 2][k % 2],
         8 | 9 => &mut e.eccentricity[k - 8],
+        11 | 12 => &mut e.polynomial[k - 11],
         _ => &mut e.backlash,
     }
 }
@@ -698,6 +757,18 @@ pub fn candidates(fitted: &[Slot], geom_fixed: &[usize]) -> Vec<Effect> {
     out
 }
 
+/// The generic dictionary ([`Kind::Generic`]) for a model whose fitted slots are `fitted`:
+/// every joint × every basis function whose slot is not fitted yet.
+pub fn generic_candidates(fitted: &[Slot]) -> Vec<Effect> {
+    (0..6 * GENERIC_BASIS.len())
+        .map(|i| Effect {
+            kind: Kind::Generic,
+            target: Some(i),
+        })
+        .filter(|e| e.slots().iter().all(|s| !fitted.contains(s)))
+        .collect()
+}
+
 /// Effects already in a model whose fitted slots are `fitted` (every slot of the effect
 /// is fitted): reported as "already modelled", never candidates.
 pub fn modelled(fitted: &[Slot]) -> Vec<Effect> {
@@ -716,6 +787,11 @@ pub fn modelled(fitted: &[Slot]) -> Vec<Effect> {
                 all.push(Effect { kind, target: None })
             }
             Kind::GeometricDeparture => all.extend((0..24).map(|i| Effect {
+                kind,
+                target: Some(i),
+            })),
+            // Only the polynomial terms: the others share their slots with library kinds.
+            Kind::Generic => all.extend((0..12).map(|i| Effect {
                 kind,
                 target: Some(i),
             })),

@@ -65,7 +65,7 @@ impl Default for DiscoverOptions {
             folds: 5,
             alpha: 0.01,
             min_delta_bic: 10.0,
-            max_effects: 4,
+            max_effects: 6,
             gear_ratio: crate::model::DEFAULT_GEAR_RATIO,
             resolver_arcmin: None,
             torque_constants: None,
@@ -207,6 +207,8 @@ pub struct Step {
     pub candidates: Vec<Score>,
     /// The label of the effect added, if any.
     pub accepted: Option<String>,
+    /// Whether this step searched the generic dictionary (the library was exhausted).
+    pub generic: bool,
     /// Other candidates whose columns, beyond the current model, are nearly parallel to the
     /// accepted one's on these poses (largest canonical correlation ≥ 0.9): what the data
     /// barely tell apart from it, with that correlation.
@@ -234,6 +236,9 @@ pub struct Found {
     pub gain_mm: f64,
     /// Whether `pa10d` compensates it when the extended model is loaded.
     pub run_time: bool,
+    /// For an unnamed generic term, its form, e.g. "δq2 ≈ -4.0e-4·q2² rad on J2, quadratic
+    /// in its angle".
+    pub form: Option<String>,
 }
 
 /// Residuals against an effect's regressor, before and after it was added (for plots).
@@ -253,6 +258,14 @@ pub struct Evidence {
 pub struct Discovery {
     /// Whether the starting model's lack of fit is significant (anything missing at all).
     pub significant_gap_before: bool,
+    /// Whether the gap is closed: the extended model's lack of fit is not significant and
+    /// its held-out error is within 1.25× the noise floor.
+    pub gap_closed: bool,
+    /// Whether the library ran out with the lack of fit still significant (the generic
+    /// dictionary was then searched).
+    pub library_exhausted: bool,
+    /// The conclusion in one sentence.
+    pub verdict: String,
     /// Held-out RMS position error of the starting model, mm.
     pub gap_before_mm: f64,
     /// Held-out RMS position error of the extended model, mm.
@@ -288,6 +301,9 @@ pub struct Discovery {
     #[serde(skip)]
     pub model: Model,
 }
+
+/// The held-out error, in noise floors, below which the gap counts as closed.
+pub const GAP_CLOSED: f64 = 1.25;
 
 /// Identifiable fraction below which a candidate direction counts as absorbed (1 % of its
 /// column norm left after projection).
@@ -522,7 +538,7 @@ fn model_slots(model: &Model) -> Vec<Slot> {
         if let Some(e) = d.joint_errors[j] {
             let st = State::from_model(model, e.gear_ratio);
             s.extend(
-                (0..11)
+                (0..13)
                     .map(|k| Slot::JointErr(j, k))
                     .filter(|&sl| st.get(sl) != 0.0),
             );
@@ -922,6 +938,14 @@ pub fn discover(
     let noise0 = noise.clone();
     let (lof0, mut a_fit) = plain_lack_of_fit(&prob, &cur.state, &slots)?;
     let significant = lof0.p_value < opts.alpha;
+    // Between-configuration variance is either a repeatable resolver error or an effect of
+    // the configuration the model misses; the data alone cannot say which (the estimate
+    // absorbs the effect, and the test of lack of fit then has nothing left to see). So a
+    // significant repeatable component also opens the search: a candidate must then earn its
+    // place by the same F, ΔBIC, held-out and bootstrap tests.
+    let suspect = |lof: &LackOfFit, noise: &NoiseReport| {
+        lof.p_value < opts.alpha || noise.model.repeatable_p < opts.alpha
+    };
     let base_cols: Vec<usize> = (0..slots.len()).collect();
     let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
     let (_, gap0) = heldout(&prob, &cur.lin, &eqs, &lay.folds, &base_cols);
@@ -945,9 +969,17 @@ pub fn discover(
         .collect();
     let mut gap = gap0;
     let mut lof = lof0;
-    let mut go = significant;
+    let mut go = suspect(&lof0, &noise);
+    // Once no library candidate passes while the lack of fit stays significant, the generic
+    // dictionary is searched with the same discipline.
+    let mut generic = false;
     while go && found.len() < opts.max_effects {
-        let cands: Vec<Effect> = effects::candidates(&slots, &[])
+        let pool = if generic {
+            effects::generic_candidates(&slots)
+        } else {
+            effects::candidates(&slots, &[])
+        };
+        let cands: Vec<Effect> = pool
             .into_iter()
             .filter(|e| opts.only.as_ref().is_none_or(|o| o.contains(&e.kind)))
             .filter(|e| !rejected.contains(e))
@@ -1103,10 +1135,17 @@ pub fn discover(
             lack_of_fit: lof,
             candidates: scores.into_iter().map(|(s, _)| s).collect(),
             accepted: accepted.map(|ci| cands[ci].label()),
+            generic,
             look_alikes,
         };
         steps.push(step);
-        let Some(ci) = accepted else { break };
+        let Some(ci) = accepted else {
+            if !generic && suspect(&lof, &noise) {
+                generic = true;
+                continue;
+            }
+            break;
+        };
         let e = cands[ci];
         // Start the new parameters at their linearised estimate.
         let cols: Vec<usize> = (0..nb).chain(ranges[ci].clone()).collect();
@@ -1192,7 +1231,7 @@ pub fn discover(
         }
         found.push((e, gap - g2));
         gap = g2;
-        go = lof.p_value < opts.alpha;
+        go = suspect(&lof, &noise);
     }
     // Uncertainties at the final fit.
     let mut a = a_fit;
@@ -1226,6 +1265,10 @@ pub fn discover(
                 units,
                 gain_mm: *gain,
                 run_time: e.run_time(),
+                form: e
+                    .slots()
+                    .first()
+                    .and_then(|&sl| e.generic_form(cur.state.get(sl))),
             }
         })
         .collect();
@@ -1249,19 +1292,50 @@ pub fn discover(
             .collect();
         model_out = Model::new(d)?;
     }
+    let floor = noise_floor_mm(
+        &prob,
+        &cur.state,
+        &cur.state.geometry()?,
+        &lay.folds,
+        noise.repeatable_used_rad,
+    );
+    let fits = lof.p_value >= opts.alpha;
+    let gap_closed = fits && gap <= GAP_CLOSED * floor;
+    let verdict = if found.is_empty() && gap_closed {
+        "nothing significant is missing: the model fits to the noise floor".to_string()
+    } else if gap_closed {
+        format!(
+            "the gap is closed: held-out {gap:.3} mm, {:.2}× the noise floor",
+            gap / floor
+        )
+    } else {
+        let why = if fits {
+            format!(
+                "the lack of fit is no longer significant, but the held-out error is still {:.2}× the noise floor (more than {GAP_CLOSED}×): the held-out data differ from the training data in a way the model does not capture (e.g. loads or configurations outside the training range)",
+                gap / floor
+            )
+        } else if found.len() >= opts.max_effects {
+            format!(
+                "the lack of fit is still significant after the effect budget ({}) was spent",
+                opts.max_effects
+            )
+        } else if generic {
+            "the lack of fit is still significant and neither the library nor the generic dictionary has a term that passes every test: something is missing that this tool cannot name".to_string()
+        } else {
+            "the lack of fit is still significant and no candidate passes every test".to_string()
+        };
+        format!("the gap is NOT closed: {why}")
+    };
     Ok(Discovery {
         significant_gap_before: significant,
+        gap_closed,
+        library_exhausted: generic,
+        verdict,
         gap_before_mm: gap0,
         gap_after_mm: gap,
         train_gap_before_mm: train0,
         train_gap_after_mm: train_rms_mm(&prob, &cur.lin.raw),
-        noise_floor_mm: noise_floor_mm(
-            &prob,
-            &cur.state,
-            &cur.state.geometry()?,
-            &lay.folds,
-            noise.repeatable_used_rad,
-        ),
+        noise_floor_mm: floor,
         heldout: if lay.holdout {
             format!("holdout set ({} configurations)", lay.folds[0].len())
         } else {

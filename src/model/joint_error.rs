@@ -3,9 +3,10 @@
 //!
 //! These are the run-time effects `pa10 discover` can add to a model (besides compliance).
 //! With them the link angle is
-//! `q_link = q_motor − δ(τ) − e(q_motor) − (b/2)·dir`, where `e` is the periodic error,
-//! `b` the backlash (total lost motion, rad) and `dir` ∈ {−1, 0, +1} the direction the joint
-//! last moved in (0: unknown, the centre of the lost motion).
+//! `q_link = q_motor − δ(τ) − e(q_motor) − (b/2)·dir`, where `e` is the periodic error plus
+//! any polynomial term `p₂·q² + p₃·q³` (an unnamed term discovery localised outside its
+//! library), `b` the backlash (total lost motion, rad) and `dir` ∈ {−1, 0, +1} the
+//! direction the joint last moved in (0: unknown, the centre of the lost motion).
 
 use serde::{Deserialize, Serialize};
 
@@ -49,6 +50,10 @@ pub struct JointError {
     /// Backlash: total lost motion between the two approach directions, rad (≥ 0).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub backlash: f64,
+    /// Polynomial error `[p₂, p₃]`: `p₂·q² + p₃·q³` (rad/rad², rad/rad³), a generic term
+    /// `pa10 discover` localised when its library was exhausted.
+    #[serde(default, skip_serializing_if = "is_zero1")]
+    pub polynomial: [f64; 2],
 }
 
 impl Default for JointError {
@@ -59,6 +64,7 @@ impl Default for JointError {
             wave: [[0.0; 2]; 2],
             eccentricity: [0.0; 2],
             backlash: 0.0,
+            polynomial: [0.0; 2],
         }
     }
 }
@@ -79,7 +85,9 @@ impl JointError {
             e += self.wave[h][0] * s + self.wave[h][1] * c;
         }
         let (s, c) = q.sin_cos();
-        e + self.eccentricity[0] * s + self.eccentricity[1] * c
+        e + self.eccentricity[0] * s
+            + self.eccentricity[1] * c
+            + q * q * (self.polynomial[0] + self.polynomial[1] * q)
     }
 
     /// The whole offset `q_motor − δ − q_link` (rad) at motor angle `q` after an approach in
@@ -113,6 +121,14 @@ impl JointError {
                     format!(
                         "periodic error amplitudes must be finite and within ±0.01 rad, got {v}"
                     ),
+                ));
+            }
+        }
+        for v in self.polynomial {
+            if !(v.is_finite() && v.abs() <= 0.01) {
+                return Err((
+                    format!("{key}.polynomial"),
+                    format!("coefficients must be finite and within ±0.01 rad/radⁿ, got {v}"),
                 ));
             }
         }

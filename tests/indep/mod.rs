@@ -15,8 +15,8 @@
 //! - `both`;
 //! - per-axis instrument noise (x, y, z differ), relative + absolute torque noise.
 //!
-//! Hidden effects of its own: a J4 spring (in the discovery library), and a quadratic
-//! transmission error on J2 `δq2 = c·q2²` (outside it).
+//! Hidden effects of its own: a J4 spring (in the discovery library), and a polynomial
+//! error `δq_j = c·q_jⁿ` on one joint (outside it).
 #![allow(dead_code)]
 
 use std::fmt::Write as _;
@@ -263,8 +263,8 @@ pub enum Hidden {
     None,
     /// A linear spring on J4, N·m/rad.
     SpringJ4(f64),
-    /// `δq2 = c·q2²` on J2 (rad, c in 1/rad).
-    QuadraticJ2(f64),
+    /// `δq_j = c·q_jⁿ` on joint `j` (zero-based): `(j, n, c)`, c in rad/radⁿ.
+    Poly(usize, i32, f64),
 }
 
 /// A measurement campaign to generate.
@@ -416,7 +416,7 @@ impl Robot {
             tau = self.torques(&q, load_n);
             let next: [f64; 6] = std::array::from_fn(|j| {
                 let extra = match self.hidden {
-                    Hidden::QuadraticJ2(c) if j == 1 => c * qm[1] * qm[1],
+                    Hidden::Poly(k, n, c) if j == k => c * qm[j].powi(n),
                     _ => 0.0,
                 };
                 qm[j] - self.deflection(j, tau[j]) - extra

@@ -168,6 +168,11 @@ fn print(d: &Discovery, out: Option<&Path>) {
         );
     }
     for s in &d.steps {
+        if s.generic && s.step > 1 && !d.steps[s.step - 2].generic {
+            println!(
+                "     — no library effect passes while the data still show unexplained variance: searching generic terms per joint (q², q³, sin/cos of q and 2q, approach direction) —"
+            );
+        }
         for c in s.candidates.iter().filter(|c| c.identifiable > 0).take(5) {
             println!(
                 "{:>4} {:>34} {:>4} {:>10.1} {:>9.1} {:>9.1e} {:>8}  {}",
@@ -208,9 +213,14 @@ fn print(d: &Discovery, out: Option<&Path>) {
     }
     for e in &d.effects {
         println!(
-            "named: {} — {} (held-out gain {:.3} mm{})",
+            "{}: {} — {} (held-out gain {:.3} mm{})",
+            if e.form.is_some() {
+                "localised (unnamed)"
+            } else {
+                "named"
+            },
             e.label,
-            e.description,
+            e.form.as_deref().unwrap_or(e.description),
             e.gain_mm,
             if e.run_time {
                 ", compensated by pa10d"
@@ -235,6 +245,7 @@ fn print(d: &Discovery, out: Option<&Path>) {
         d.noise_floor_mm,
         d.gap_after_mm / d.noise_floor_mm
     );
+    println!("{}", d.verdict);
     if let Some(o) = out {
         println!("extended model written to {}", o.display());
     }
