@@ -24,10 +24,10 @@ use super::base::{self, Psi};
 use super::dataset::{Dataset, Effort};
 use super::weights::{self, Whitening, config_groups, whitening};
 use crate::model::params::{IDX_KCUB, IDX_KLIN, PARAM_COUNT};
+use crate::model::params::{PAPER_STIFFNESS, TOLERANCES};
 use crate::model::{
     Frame, Model, ModelError, ParamVector, Stiffness, frame_from_pose, param_names,
 };
-use crate::sim::{PAPER_STIFFNESS, TOLERANCES};
 
 /// How to calibrate.
 #[derive(Debug, Clone, PartialEq)]

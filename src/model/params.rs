@@ -25,6 +25,12 @@ pub const PARAM_COUNT: usize = 30;
 /// The 30 identification parameters in the order documented in this module.
 pub type ParamVector = [f64; PARAM_COUNT];
 
+/// The seed paper's manufacturing tolerances: a (m), α (rad), d (m), β (rad), θ (rad).
+pub const TOLERANCES: [f64; 5] = [0.25e-3, 1e-3, 0.25e-3, 1e-3, 5e-4];
+
+/// The seed paper's identified stiffness of J2, J3, J5: (Klin N·m/rad, Kcub N·m/rad³).
+pub const PAPER_STIFFNESS: [(f64, f64); 3] = [(1.98e4, 3.35e7), (1.27e4, 1.46e7), (2.56e3, 3.83e7)];
+
 /// Zero-based indices of the joints whose stiffness is identified (J2, J3, J5).
 pub const STIFF_JOINTS: [usize; 3] = [1, 2, 4];
 

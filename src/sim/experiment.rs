@@ -274,8 +274,8 @@ pub struct DiscoverySpec {
     pub both_directions: bool,
     /// Arm temperatures of the passes, °C (empty: one pass, no temperature column).
     pub temperatures_c: Vec<f64>,
-    /// Truth slots to set (the hidden effects), with values in the slot's unit.
-    pub hidden: Vec<(crate::discover::effects::Slot, f64)>,
+    /// The hidden effects set on top of the drawn truth.
+    pub hidden: Vec<Hidden>,
     /// Flange → target (the tooling ball frame), known to the user.
     pub tool: Frame,
     /// Sensor noise.
@@ -322,7 +322,6 @@ pub struct DiscoveryCampaign {
 /// Generates the campaign of `spec`: the truth is [`TrueRobot::draw`]`(seed)` with the
 /// hidden slots set on top.
 pub fn discovery_campaign(spec: &DiscoverySpec) -> Result<DiscoveryCampaign, CampaignError> {
-    use crate::discover::effects::State;
     if spec.configs < 8 || spec.configs > 1000 || spec.repeats == 0 || spec.loads.is_empty() {
         return Err(CampaignError::Invalid(
             "discovery campaign: needs 8…1000 configurations, ≥ 1 repeat and ≥ 1 load".into(),
@@ -339,16 +338,12 @@ pub fn discovery_campaign(spec: &DiscoverySpec) -> Result<DiscoveryCampaign, Cam
     }
     let mut truth = TrueRobot::draw(spec.seed, &Model::nominal(), &spec.tool, spec.noise)?;
     if !spec.hidden.is_empty() {
-        let mut st = State::from_model(&truth.model, crate::model::DEFAULT_GEAR_RATIO);
-        for &(slot, v) in &spec.hidden {
-            st.set(slot, v);
+        let mut d = truth.model.data().clone();
+        for h in &spec.hidden {
+            h.apply(&mut d, &mut truth.extras);
         }
-        let mut d = st.to_model()?.data().clone();
-        d.robot = truth.model.data().robot.clone();
-        truth.model = Model::new(d)?;
-        truth.extras.thermal = st.thermal;
-        truth.extras.bending = st.bending;
         truth.extras.t_ref_c = 20.0;
+        truth.model = Model::new(d)?;
     }
     let mut rng = Pcg64::seed_from_u64(
         spec.seed ^ 0xd15c_0e7e ^ spec.pose_seed.wrapping_mul(0x9e37_79b9_7f4a_7c15),
@@ -398,6 +393,53 @@ pub fn discovery_campaign(spec: &DiscoverySpec) -> Result<DiscoveryCampaign, Cam
     Ok(DiscoveryCampaign { data, truth })
 }
 
+/// An effect the simulator's truth can hide (joints and DH rows zero-based). The simulator
+/// applies it with its own code: joint effects as the truth's springs and joint errors,
+/// thermal growth as real changes of the link lengths, bending in [`TrueRobot`]'s own
+/// forward model — never with the discovery library's functions.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Hidden {
+    /// A linear spring of stiffness `k` (N·m/rad) on joint `j` (keeps a cubic term there).
+    Spring(usize, f64),
+    /// Sets the cubic stiffness of joint `j` (N·m/rad³; 0 removes it).
+    CubicStiffness(usize, f64),
+    /// Transmission error once per wave-generator revolution on joint `j`: sin, cos (rad).
+    WaveHarmonic(usize, f64, f64),
+    /// Transmission error twice per output revolution on joint `j`: sin, cos (rad).
+    OutputHarmonic2(usize, f64, f64),
+    /// Backlash (total lost motion, rad) on joint `j`.
+    Backlash(usize, f64),
+    /// Thermal expansion of DH row `j` (1/K, against 20 °C).
+    Thermal(usize, f64),
+    /// Bending compliance of DH row `j` (rad/(N·m)).
+    Bending(usize, f64),
+}
+
+impl Hidden {
+    /// Puts the effect into the truth's model data or extras.
+    pub fn apply(&self, d: &mut crate::model::ModelData, extras: &mut super::TruthExtras) {
+        fn je(d: &mut crate::model::ModelData, j: usize) -> &mut crate::model::JointError {
+            d.joint_errors[j].get_or_insert_with(Default::default)
+        }
+        match *self {
+            Hidden::Spring(j, k) => {
+                let kcub = d.stiffness[j].map_or(0.0, |s| s.kcub);
+                d.stiffness[j] = Some(crate::model::Stiffness { klin: k, kcub });
+            }
+            Hidden::CubicStiffness(j, v) => {
+                if let Some(s) = &mut d.stiffness[j] {
+                    s.kcub = v;
+                }
+            }
+            Hidden::WaveHarmonic(j, s, c) => je(d, j).wave[0] = [s, c],
+            Hidden::OutputHarmonic2(j, s, c) => je(d, j).output[1] = [s, c],
+            Hidden::Backlash(j, b) => je(d, j).backlash = b,
+            Hidden::Thermal(j, a) => extras.thermal[j] = a,
+            Hidden::Bending(j, c) => extras.bending[j] = c,
+        }
+    }
+}
+
 /// A hidden-effect scenario for `pa10 discover`: what the truth has that the starting
 /// model lacks, and what discovery should name.
 #[derive(Debug, Clone, PartialEq)]
@@ -408,15 +450,15 @@ pub struct Scenario {
     pub description: &'static str,
     /// Whether the starting model is the paper's linear-only comparison model.
     pub linear_only: bool,
-    /// Truth slots set on top of the drawn robot.
-    pub hidden: Vec<(crate::discover::effects::Slot, f64)>,
+    /// What the truth has on top of the drawn robot.
+    pub hidden: Vec<Hidden>,
     /// Labels discovery should name, in order of size.
     pub expect: Vec<&'static str>,
 }
 
 /// The scenarios the discovery tests and study use.
 pub fn scenarios() -> Vec<Scenario> {
-    use crate::discover::effects::Slot;
+    use Hidden::*;
     vec![
         Scenario {
             name: "none",
@@ -429,49 +471,42 @@ pub fn scenarios() -> Vec<Scenario> {
             name: "cubic-j2",
             description: "cubic stiffness on J2 (the paper's 3.35e7 N·m/rad³ ±20 %), starting from a linear-only model",
             linear_only: true,
-            hidden: vec![(Slot::Kcub(2), 0.0), (Slot::Kcub(4), 0.0)],
+            hidden: vec![CubicStiffness(2, 0.0), CubicStiffness(4, 0.0)],
             expect: vec!["joint_compliance_cubic[J2]"],
         },
         Scenario {
             name: "compliance-j4",
             description: "a 4000 N·m/rad spring on J4, which the paper holds rigid",
             linear_only: false,
-            hidden: vec![(Slot::Compliance(3), 1.0 / 4.0e3)],
+            hidden: vec![Spring(3, 4.0e3)],
             expect: vec!["joint_compliance_linear[J4]"],
         },
         Scenario {
             name: "transmission-j3",
             description: "transmission error on J3: 0.5 mrad once per wave-generator revolution (1:50) and 0.3 mrad twice per output revolution",
             linear_only: false,
-            hidden: vec![
-                (Slot::JointErr(2, 4), 4e-4),
-                (Slot::JointErr(2, 5), -3e-4),
-                (Slot::JointErr(2, 2), 3e-4),
-            ],
+            hidden: vec![WaveHarmonic(2, 4e-4, -3e-4), OutputHarmonic2(2, 3e-4, 0.0)],
             expect: vec!["transmission_error[J3]"],
         },
         Scenario {
             name: "backlash-j1",
             description: "0.4 mrad of backlash on J1",
             linear_only: false,
-            hidden: vec![(Slot::JointErr(0, 10), 4e-4)],
+            hidden: vec![Backlash(0, 4e-4)],
             expect: vec!["backlash[J1]"],
         },
         Scenario {
             name: "thermal-forearm",
             description: "thermal expansion of the forearm (aluminium, 23e-6 /K) over a 15 K warm-up",
             linear_only: false,
-            hidden: vec![(Slot::Thermal(3), 2.3e-5)],
+            hidden: vec![Thermal(3, 2.3e-5)],
             expect: vec!["thermal_expansion[link 4]"],
         },
         Scenario {
             name: "j4-and-backlash",
             description: "two at once: the J4 spring (mm) and J1 backlash (0.1 mm)",
             linear_only: false,
-            hidden: vec![
-                (Slot::Compliance(3), 1.0 / 4.0e3),
-                (Slot::JointErr(0, 10), 4e-4),
-            ],
+            hidden: vec![Spring(3, 4.0e3), Backlash(0, 4e-4)],
             expect: vec!["joint_compliance_linear[J4]", "backlash[J1]"],
         },
     ]
