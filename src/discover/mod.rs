@@ -65,7 +65,7 @@ impl Default for DiscoverOptions {
             folds: 5,
             alpha: 0.01,
             min_delta_bic: 10.0,
-            max_effects: 6,
+            max_effects: 8,
             gear_ratio: crate::model::DEFAULT_GEAR_RATIO,
             resolver_arcmin: None,
             torque_constants: None,
@@ -294,6 +294,9 @@ pub struct Discovery {
     pub not_identifiable: Vec<String>,
     /// Effects the starting model already has (fitted, never candidates).
     pub already_modelled: Vec<String>,
+    /// Effects accepted on the way and removed at the end because the effects found after
+    /// them explain them (backward elimination), with why.
+    pub pruned: Vec<String>,
     /// Residual evidence per effect found.
     #[serde(skip)]
     pub evidence: Vec<Evidence>,
@@ -1233,6 +1236,75 @@ pub fn discover(
         gap = g2;
         go = suspect(&lof, &noise);
     }
+    // Backward elimination: forward selection cannot take back an early pick that later
+    // effects make redundant (from the rigid model, bending of the forearm looks like the J3
+    // spring until the spring is in). An effect whose removal — linearised at the final fit,
+    // the others refitted: `Δχ² = xᵀ·S·x`, S the Schur complement of its block — is no
+    // longer significant (F test, Bonferroni over the effects found) or fails ΔBIC is
+    // removed and the model refitted, weakest first, until every effect holds.
+    let mut pruned: Vec<String> = Vec::new();
+    while found.len() > 1 {
+        let mut plain = prob.clone();
+        plain.dispersion = (1.0, 1.0);
+        let lin = fit::linearise(&plain, &cur.state, &slots)?;
+        let rows = plain.white_rows(|b| b.train);
+        let cols: Vec<usize> = (0..slots.len()).collect();
+        let (a, _) = fit::normal_eq(&lin, &rows, &cols);
+        let dispersion = lof.between.ratio.min(lof.within.ratio).max(1.0);
+        let df_pe = plain.pure_error(&lin.raw).1.max(1) as f64;
+        let m = found.len() as f64;
+        let weakest = found
+            .iter()
+            .enumerate()
+            .map(|(fi, (e, _))| {
+                let mine: Vec<usize> = e
+                    .slots()
+                    .iter()
+                    .filter_map(|sl| slots.iter().position(|s| s == sl))
+                    .collect();
+                let others: Vec<usize> =
+                    cols.iter().copied().filter(|c| !mine.contains(c)).collect();
+                let sub = |r: &[usize], c: &[usize]| {
+                    DMatrix::from_fn(r.len(), c.len(), |i, j| a[(r[i], c[j])])
+                };
+                let schur = sub(&mine, &mine)
+                    - sub(&mine, &others) * fit::pinv(&sub(&others, &others)) * sub(&others, &mine);
+                let x = DVector::from_fn(mine.len(), |i, _| {
+                    cur.state.get(slots[mine[i]]) / slots[mine[i]].scale()
+                });
+                let chi2 = (x.transpose() * schur * &x)[(0, 0)] / dispersion;
+                let k = mine.len() as f64;
+                let p = (stats::f_sf(chi2 / k, k, df_pe) * m).min(1.0);
+                let bic = chi2 - k * ln_n;
+                (fi, p, bic)
+            })
+            .filter(|&(_, p, bic)| p >= opts.alpha || bic <= opts.min_delta_bic)
+            .max_by(|a, b| a.1.total_cmp(&b.1).then(b.2.total_cmp(&a.2)));
+        let Some((fi, p, bic)) = weakest else { break };
+        let (e, _) = found.remove(fi);
+        pruned.push(format!(
+            "{} (removing it costs ΔBIC {bic:.1}, p = {p:.2e}: the effects found after it explain it)",
+            e.label()
+        ));
+        let mut st = cur.state.clone();
+        for sl in e.slots() {
+            st.set(sl, 0.0);
+        }
+        slots.retain(|sl| !e.slots().contains(sl));
+        let pr = fit::prior(&slots, &base_slots);
+        (prob, noise) = problem(&lay, &st, slots.len())?;
+        cur = fit::fit_balanced(&mut prob, &st, &slots, &pr)?;
+        (lof, a_fit) = plain_lack_of_fit(&prob, &cur.state, &slots)?;
+        let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
+        gap = heldout(
+            &prob,
+            &cur.lin,
+            &eqs,
+            &lay.folds,
+            &(0..slots.len()).collect::<Vec<_>>(),
+        )
+        .1;
+    }
     // Uncertainties at the final fit.
     let mut a = a_fit;
     for (k, w) in fit::prior(&slots, &base_slots).iter().enumerate() {
@@ -1352,6 +1424,7 @@ pub fn discover(
             .iter()
             .map(Effect::label)
             .collect(),
+        pruned,
         evidence,
         model: model_out,
     })

@@ -41,7 +41,7 @@ pub struct DiscoverArgs {
     #[arg(long, default_value_t = 0.01)]
     alpha: f64,
     /// Largest number of effects to add.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 8)]
     max_effects: usize,
     /// Wave-generator revolutions per output revolution for transmission-error candidates.
     #[arg(long, default_value_t = pa10::model::DEFAULT_GEAR_RATIO)]
@@ -206,6 +206,9 @@ fn print(d: &Discovery, out: Option<&Path>) {
             "\nnot identifiable from these poses (absorbed by the model): {}",
             d.not_identifiable.join(", ")
         );
+    }
+    for p in &d.pruned {
+        println!("\nremoved at the end: {p}");
     }
     println!();
     if d.effects.is_empty() {
