@@ -13,7 +13,9 @@
 //!    named on another joint in more than 4 % of seeds).
 //!
 //! `cargo run --release --example independent_study [seeds]` (default 10 seeds per family;
-//! CI runs 2). Prints one table per family and a summary line per criterion.
+//! CI runs 2 and checks only the hard invariants). Prints one line per family;
+//! `PA10_STUDY_FAMILY=reading|repeatable|both` runs one family, `PA10_STUDY_FIRST=N` starts
+//! at seed N, `PA10_STUDY_VERBOSE=1` prints the q1³ cases that were not localised.
 
 #[path = "../tests/indep/mod.rs"]
 mod indep;
@@ -141,15 +143,15 @@ fn main() -> anyhow::Result<()> {
             fam.name,
             ratio_sum / seeds as f64,
         );
-        // The bars, scaled to the number of seeds (45 of 50 = 90 %).
+        // The bars, scaled to the number of seeds (45 of 50 = 90 %); with fewer than
+        // 10 seeds (CI's reduced run) only what must never happen is checked: a false naming,
+        // an effect named on the wrong joint, a wrong noise structure.
         let bar = |k: usize| 10 * k >= 9 * n;
-        if !(bar(structure_ok)
-            && bar(noise_ok)
-            && ratio_sum / seeds as f64 <= 1.15
-            && 25 * false_named <= n
-            && bar(j4_named)
-            && 25 * poly_wrong <= n)
-        {
+        let statistical = seeds >= 10;
+        let hard = 25 * false_named <= n && 25 * poly_wrong <= n && structure_ok == n;
+        let stats =
+            bar(structure_ok) && bar(noise_ok) && ratio_sum / seeds as f64 <= 1.15 && bar(j4_named);
+        if !(hard && (stats || !statistical)) {
             failures += 1;
         }
     }
