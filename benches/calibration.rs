@@ -17,7 +17,7 @@ fn bench(c: &mut Criterion) {
     let m = Model::nominal();
     let mut g = c.benchmark_group("calibration");
     g.sample_size(20).measurement_time(Duration::from_secs(15));
-    g.bench_function("default (GLS, 4 starts), 810 rows", |b| {
+    g.bench_function("default (measured weighting, 4 starts), 810 rows", |b| {
         b.iter(|| {
             calibrate(
                 &m,
