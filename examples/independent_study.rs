@@ -25,7 +25,7 @@ use std::time::Instant;
 use indep::{Hidden, Spec, families, generate};
 use pa10::calib::dataset::Dataset;
 use pa10::calib::fit::{CalibOptions, calibrate, evaluate};
-use pa10::discover::{DiscoverOptions, discover};
+use pa10::discover::{DiscoverOptions, Discovery, discover};
 use pa10::model::Model;
 
 fn load(set: &indep::Set, tag: &str) -> anyhow::Result<(Dataset, Dataset)> {
@@ -34,6 +34,25 @@ fn load(set: &indep::Set, tag: &str) -> anyhow::Result<(Dataset, Dataset)> {
     let out = (Dataset::load(&cal)?, Dataset::load(&val)?);
     std::fs::remove_dir_all(&dir)?;
     Ok(out)
+}
+
+/// A set of `fam` with `hidden`, calibrated from the nominal model, then discovered from the
+/// calibrated model with the validation set held out.
+fn hidden_run(fam: indep::Family, hidden: Hidden, seed: u64) -> anyhow::Result<Discovery> {
+    let set = generate(&Spec {
+        hidden,
+        ..Spec::paper(seed, fam)
+    });
+    let (cal, val) = load(&set, fam.name)?;
+    let m = calibrate(
+        &Model::nominal(),
+        &cal,
+        None,
+        &CalibOptions::default(),
+        &|_| {},
+    )?
+    .model;
+    Ok(discover(&m, &cal, Some(&val), &DiscoverOptions::default())?)
 }
 
 fn within(est: f64, truth: f64) -> bool {
@@ -96,39 +115,13 @@ fn main() -> anyhow::Result<()> {
             noise_ok += usize::from(reading_ok && rep_ok && inst_ok);
             false_named += usize::from(!d.effects.is_empty());
             // 3b. a J4 spring
-            let set = generate(&Spec {
-                hidden: Hidden::SpringJ4(4000.0),
-                ..Spec::paper(2000 + seed, fam)
-            });
-            let (cal, val) = load(&set, fam.name)?;
-            let m = calibrate(
-                &Model::nominal(),
-                &cal,
-                None,
-                &CalibOptions::default(),
-                &|_| {},
-            )?
-            .model;
-            let d = discover(&m, &cal, Some(&val), &DiscoverOptions::default())?;
+            let d = hidden_run(fam, Hidden::SpringJ4(4000.0), 2000 + seed)?;
             j4_named += usize::from(
                 d.effects.first().map(|e| e.label.as_str()) == Some("joint_compliance_linear[J4]"),
             );
             closed += usize::from(d.gap_closed);
             // 3c. outside the library
-            let set = generate(&Spec {
-                hidden: Hidden::Poly(0, 3, 3e-4),
-                ..Spec::paper(3000 + seed, fam)
-            });
-            let (cal, val) = load(&set, fam.name)?;
-            let m = calibrate(
-                &Model::nominal(),
-                &cal,
-                None,
-                &CalibOptions::default(),
-                &|_| {},
-            )?
-            .model;
-            let d = discover(&m, &cal, Some(&val), &DiscoverOptions::default())?;
+            let d = hidden_run(fam, Hidden::Poly(0, 3, 3e-4), 3000 + seed)?;
             let ok = !d.effects.is_empty() && d.effects.iter().all(|e| e.joint == Some(1));
             poly_localised += usize::from(ok);
             poly_wrong += usize::from(d.effects.iter().any(|e| e.joint != Some(1)));
