@@ -29,6 +29,10 @@ use crate::model::{
     Frame, Model, ModelError, ParamVector, Stiffness, frame_from_pose, param_names,
 };
 
+/// Levenberg–Marquardt patience (evaluations per parameter) of a refit that starts from a
+/// solution on other weights.
+const PATIENCE_REFIT: usize = 20;
+
 /// How to calibrate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CalibOptions {
@@ -656,6 +660,7 @@ pub fn calibrate(
     }
     let psi0 = seed_base(&m0, &rows, lines)?;
     let prior = weights::prior(data);
+    let mut first_sigma = 0.0;
     let mut whitening = match opts.weighting {
         Weighting::Paper => None,
         Weighting::Gls => Some(whitening(data, &m0, &rows, opts.r_max)),
@@ -667,7 +672,22 @@ pub fn calibrate(
             let rot = *placed.base_from_instrument().rotation.matrix();
             let nm = crate::noise::within(&samples, &rot, &prior)
                 .map_err(|e| CalibError::Data(e.to_string()))?;
-            Some(weights::from_noise(data, &nm, &samples, 0.0, opts.r_max))
+            // The part of the resolver's specified uncertainty the readings do not carry is
+            // presumably repeatable: start from it as a shared offset (the estimate follows).
+            let reading2 = nm
+                .reading_rad
+                .iter()
+                .map(|r| r.value * r.value)
+                .sum::<f64>()
+                / 6.0;
+            first_sigma = (prior.resolver_rad.powi(2) - reading2).max(0.0).sqrt();
+            Some(weights::from_noise(
+                data,
+                &nm,
+                &samples,
+                first_sigma,
+                opts.r_max,
+            ))
         }
     };
     let noise = match &whitening {
@@ -726,14 +746,15 @@ pub fn calibrate(
         .collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
     let solve = |starts: &[(DVector<f64>, Psi)],
-                 whitening: Option<&Whitening>|
+                 whitening: Option<&Whitening>,
+                 patience: usize|
      -> Result<(DVector<f64>, f64, Psi, Vec<f64>), CalibError> {
         let runs: Vec<Result<StartOutcome, String>> = starts
             .par_iter()
             .map(|(s, psi)| {
                 let pb = Outer::at(&m0, &rows, &map, opts, whitening, &priors, s, *psi);
                 let (pb, report) = levenberg_marquardt::LevenbergMarquardt::new()
-                    .with_patience(200)
+                    .with_patience(patience)
                     .minimize(pb);
                 progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
                 use levenberg_marquardt::TerminationReason as T;
@@ -768,7 +789,7 @@ pub fn calibrate(
         Ok((s, cost, psi, start_costs))
     };
     let starts: Vec<(DVector<f64>, Psi)> = starts.into_iter().map(|s| (s, psi0)).collect();
-    let (mut s, mut cost, mut psi, start_costs) = solve(&starts, whitening.as_ref())?;
+    let (mut s, mut cost, mut psi, start_costs) = solve(&starts, whitening.as_ref(), 200)?;
     let mut noise_model = None;
     if opts.weighting == Weighting::Measured {
         // The whole noise model at the fit; where the configuration means show a repeatable
@@ -777,7 +798,7 @@ pub fn calibrate(
         // a GLS fit does), until the estimate settles (three rounds at most).
         let configs = config_groups(data).len();
         let between_dof = ((6 * configs) as f64 - map.free.len() as f64 - 6.0).max(1.0);
-        let mut used = 0.0;
+        let mut used = first_sigma;
         for _ in 0..3 {
             let fitted = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, &s, psi);
             let model = fitted
@@ -807,7 +828,8 @@ pub fn calibrate(
             let mut settled = (sigma - used).abs() <= 0.1 * sigma.max(used);
             if !settled {
                 let w = weights::from_noise(data, &nm, &samples, sigma, opts.r_max);
-                match solve(&[(s.clone(), psi)], Some(&w)) {
+                // A refit from the solution on other weights: close, so a shorter patience.
+                match solve(&[(s.clone(), psi)], Some(&w), PATIENCE_REFIT) {
                     Ok((s2, c2, p2, _)) => {
                         (s, cost, psi) = (s2, c2, p2);
                         whitening = Some(w);
