@@ -1,0 +1,306 @@
+//! Scoring candidates: the two-stratum lack-of-fit test, projections of candidate columns on
+//! the current model, the held-out comparison, canonical correlations of look-alikes and
+//! the bootstrap by configuration.
+
+use super::*;
+
+/// Identifiable fraction below which a candidate direction counts as absorbed (1 % of its
+/// column norm left after projection).
+pub(super) const IDENT_CUT: f64 = 1e-4;
+
+/// Training RMS position residual, mm.
+pub(super) fn train_rms_mm(p: &Problem, raw: &[Vector6<f64>]) -> f64 {
+    let (mut ss, mut n) = (0.0, 0);
+    for b in p.blocks.iter().filter(|b| b.train) {
+        for &i in &b.rows {
+            ss += raw[i].fixed_rows::<3>(0).norm_squared();
+            n += 1;
+        }
+    }
+    (ss / n.max(1) as f64).sqrt() * 1e3
+}
+
+/// The lack-of-fit test at `lin`, and the training normal matrix it was computed with.
+pub(super) fn lack_of_fit(p: &Problem, lin: &Lin) -> (LackOfFit, DMatrix<f64>) {
+    let (ss_pe, df_pe) = p.pure_error(&lin.raw);
+    let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
+    let train = p.white_rows(|b| b.train);
+    let means: Vec<usize> = p
+        .blocks
+        .iter()
+        .filter(|b| b.train)
+        .flat_map(|b| b.offset..b.offset + 6)
+        .collect();
+    let (a, _) = fit::normal_eq(lin, &train, &cols);
+    let (am, _) = fit::normal_eq(lin, &means, &cols);
+    let ai = fit::pinv(&a);
+    // Leverage of the parameters on each stratum: tr(A⁻¹·A_stratum).
+    let lev_mean = (&ai * &am).trace();
+    let lev_all = (&ai * &a).trace();
+    let c_mean: f64 = means.iter().map(|&i| lin.white[i].powi(2)).sum();
+    let c_all: f64 = train.iter().map(|&i| lin.white[i].powi(2)).sum();
+    let n_all = train.len() as f64;
+    let n_mean = means.len() as f64;
+    let n_blocks = means.len() / 6;
+    // The deviation rows hold 6 redundant entries per block (they sum to zero per block).
+    let within_dof = n_all - n_mean - 6.0 * n_blocks as f64 - df_pe as f64 - (lev_all - lev_mean);
+    let between = Stratum::new(c_mean, n_mean - lev_mean, None);
+    let within = Stratum::new((c_all - c_mean - ss_pe).max(0.0), within_dof, Some(df_pe));
+    let lof = LackOfFit {
+        between,
+        within,
+        p_value: (2.0 * between.p_value.min(within.p_value)).min(1.0),
+    };
+    (lof, a)
+}
+
+/// The linearised drop of the whitened cost when the columns `r` join the first `nb` (whose
+/// normal matrix inverse is `a_bb_inv`), counted over the directions with more than
+/// [`IDENT_CUT`] of their column left after projecting out the first `nb`: (those
+/// directions, the drop).
+pub(super) fn projected_drop(
+    a: &DMatrix<f64>,
+    g: &DVector<f64>,
+    a_bb_inv: &DMatrix<f64>,
+    g_b: &DVector<f64>,
+    r: std::ops::Range<usize>,
+) -> (usize, f64) {
+    let (nb, k) = (a_bb_inv.nrows(), r.len());
+    let a_cb = a.view((r.start, 0), (k, nb)).into_owned();
+    let a_cc = a.view((r.start, r.start), (k, k)).into_owned();
+    let schur = &a_cc - &a_cb * a_bb_inv * a_cb.transpose();
+    let h = g.rows(r.start, k).into_owned() - &a_cb * (a_bb_inv * g_b);
+    // Identifiable part: eigen-directions of the normalised Schur complement.
+    let dn = DVector::from_fn(k, |i, _| {
+        let v = a_cc[(i, i)];
+        if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 }
+    });
+    let sn = DMatrix::from_fn(k, k, |i, j| schur[(i, j)] * dn[i] * dn[j]);
+    let eig = nalgebra::SymmetricEigen::new(sn);
+    let (mut ident, mut drop) = (0, 0.0);
+    for (i, &ev) in eig.eigenvalues.iter().enumerate() {
+        if ev > IDENT_CUT {
+            ident += 1;
+            let v = eig.eigenvectors.column(i);
+            let hv: f64 = (0..k).map(|t| v[t] * dn[t] * h[t]).sum();
+            drop += hv * hv / ev;
+        }
+    }
+    (ident, drop)
+}
+
+/// The largest canonical correlation between the column blocks `r1` and `r2` of the normal
+/// matrix `a` after both are projected off the first `nb` columns (`a_bb_inv` their
+/// inverse): 1 when some combination of one block is a combination of the other.
+pub(super) fn canonical_correlation(
+    a: &DMatrix<f64>,
+    a_bb_inv: &DMatrix<f64>,
+    r1: std::ops::Range<usize>,
+    r2: std::ops::Range<usize>,
+) -> f64 {
+    let nb = a_bb_inv.nrows();
+    let proj = |x: &std::ops::Range<usize>, y: &std::ops::Range<usize>| {
+        let axy = a.view((x.start, y.start), (x.len(), y.len())).into_owned();
+        let axb = a.view((x.start, 0), (x.len(), nb)).into_owned();
+        let aby = a.view((0, y.start), (nb, y.len())).into_owned();
+        axy - axb * a_bb_inv * aby
+    };
+    let (s11, s22, s12) = (proj(&r1, &r1), proj(&r2, &r2), proj(&r1, &r2));
+    let m = fit::pinv(&s11) * &s12 * fit::pinv(&s22) * s12.transpose();
+    let ev = m.complex_eigenvalues();
+    ev.iter()
+        .map(|c| c.re)
+        .fold(0.0, f64::max)
+        .clamp(0.0, 1.0)
+        .sqrt()
+}
+
+/// Resamples for the stability check.
+pub(super) const BOOTSTRAP: usize = 100;
+
+/// Least share of resamples in which a named effect must win.
+pub(super) const STABLE: f64 = 0.8;
+
+/// Share of bootstrap resamples by configuration (multiplicities drawn with `rng`, applied
+/// to each training block's normal equations `blocks`) in which candidate `pick` has the
+/// largest ΔBIC among `ranges`.
+pub(super) fn stability(
+    blocks: &[(DMatrix<f64>, DVector<f64>)],
+    nb: usize,
+    ranges: &[std::ops::Range<usize>],
+    pick: usize,
+    dispersion: f64,
+    ln_n: f64,
+    rng: &mut Pcg64,
+) -> f64 {
+    use rand::RngExt;
+    let n = blocks.len();
+    let mut wins = 0;
+    for _ in 0..BOOTSTRAP {
+        let mut mult = vec![0.0; n];
+        for _ in 0..n {
+            mult[rng.random_range(0..n)] += 1.0;
+        }
+        let mut a = blocks[0].0.clone() * 0.0;
+        let mut g = blocks[0].1.clone() * 0.0;
+        for ((ab, gb), m) in blocks.iter().zip(&mult) {
+            if *m > 0.0 {
+                a += ab * *m;
+                g += gb * *m;
+            }
+        }
+        let a_bb_inv = fit::pinv(&a.view((0, 0), (nb, nb)).into_owned());
+        let g_b = g.rows(0, nb).into_owned();
+        let best = ranges
+            .iter()
+            .enumerate()
+            .map(|(ci, r)| {
+                let (ident, drop) = projected_drop(&a, &g, &a_bb_inv, &g_b, r.clone());
+                let bic = if ident == 0 {
+                    f64::NEG_INFINITY
+                } else {
+                    drop / dispersion - ident as f64 * ln_n
+                };
+                (ci, bic)
+            })
+            .max_by(|x, y| x.1.total_cmp(&y.1))
+            .map(|x| x.0);
+        wins += usize::from(best == Some(pick));
+    }
+    wins as f64 / BOOTSTRAP as f64
+}
+
+/// Normal equations of every fold's blocks (all columns).
+pub(super) struct FoldEqs {
+    pub(super) a: Vec<DMatrix<f64>>,
+    pub(super) g: Vec<DVector<f64>>,
+    pub(super) a_train: DMatrix<f64>,
+    pub(super) g_train: DVector<f64>,
+}
+
+pub(super) fn fold_eqs(p: &Problem, lin: &Lin, folds: &[Vec<usize>], holdout: bool) -> FoldEqs {
+    let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
+    let rows = p.white_rows(|b| b.train);
+    let (a_train, g_train) = fit::normal_eq(lin, &rows, &cols);
+    let (a, g) = folds
+        .iter()
+        .map(|f| {
+            if holdout {
+                (
+                    DMatrix::zeros(cols.len(), cols.len()),
+                    DVector::zeros(cols.len()),
+                )
+            } else {
+                let rows: Vec<usize> = f
+                    .iter()
+                    .flat_map(|&b| {
+                        let bl = &p.blocks[b];
+                        bl.offset..bl.offset + 6 * (bl.rows.len() + 1)
+                    })
+                    .collect();
+                fit::normal_eq(lin, &rows, &cols)
+            }
+        })
+        .unzip();
+    FoldEqs {
+        a,
+        g,
+        a_train,
+        g_train,
+    }
+}
+
+/// Held-out evaluation of a linearised refit over columns `cols`: per held-out block
+/// whitened cost, and the RMS position error over held-out rows (mm).
+pub(super) fn heldout(
+    p: &Problem,
+    lin: &Lin,
+    eqs: &FoldEqs,
+    folds: &[Vec<usize>],
+    cols: &[usize],
+) -> (Vec<f64>, f64) {
+    let sub =
+        |m: &DMatrix<f64>| DMatrix::from_fn(cols.len(), cols.len(), |i, j| m[(cols[i], cols[j])]);
+    let subv = |v: &DVector<f64>| DVector::from_fn(cols.len(), |i, _| v[cols[i]]);
+    let mut costs = Vec::new();
+    let (mut ss, mut n) = (0.0, 0usize);
+    let mut white = vec![0.0; 0];
+    for (f, blocks) in folds.iter().enumerate() {
+        let a = sub(&eqs.a_train) - sub(&eqs.a[f]);
+        let g = subv(&eqs.g_train) - subv(&eqs.g[f]);
+        let (d, _) = fit::damped_solve(&a, &g, 0.0);
+        for &b in blocks {
+            let bl = &p.blocks[b];
+            let len = 6 * (bl.rows.len() + 1);
+            white.clear();
+            white.extend((0..len).map(|k| {
+                let i = bl.offset + k;
+                lin.white[i]
+                    + cols
+                        .iter()
+                        .enumerate()
+                        .map(|(c, &col)| lin.jwhite[(i, col)] * d[c])
+                        .sum::<f64>()
+            }));
+            costs.push(white.iter().map(|x| x * x).sum());
+            for &i in &bl.rows {
+                let mut r = lin.raw[i];
+                for (c, &col) in cols.iter().enumerate() {
+                    r += lin.jraw[col][i] * d[c];
+                }
+                ss += r.fixed_rows::<3>(0).norm_squared();
+                n += 1;
+            }
+        }
+    }
+    (costs, (ss / n.max(1) as f64).sqrt() * 1e3)
+}
+
+/// The held-out comparison of two models over held-out configurations (`d`: per
+/// configuration cost drop): a one-sided paired t-test and a sign test, each at α/2
+/// (Bonferroni), and a positive mean gain.
+pub(super) struct Paired {
+    pub(super) mean: f64,
+    pub(super) t: f64,
+    pub(super) t_crit: f64,
+    pub(super) better: usize,
+    pub(super) sign_p: f64,
+    pub(super) pass: bool,
+}
+
+impl Paired {
+    pub(super) fn new(d: &[f64], alpha: f64) -> Self {
+        let n = d.len() as f64;
+        let mean = d.iter().sum::<f64>() / n.max(1.0);
+        let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0)).sqrt();
+        let t = if sd > 0.0 {
+            mean / (sd / n.sqrt())
+        } else {
+            0.0
+        };
+        // The sign test cannot be fooled by heavy-tailed per-configuration gains.
+        let t_crit = stats::t_quantile(1.0 - 0.5 * alpha, (n - 1.0).max(1.0));
+        let better = d.iter().filter(|x| **x > 0.0).count();
+        let sign_p = stats::sign_test(better, d.len());
+        Self {
+            mean,
+            t,
+            t_crit,
+            better,
+            sign_p,
+            pass: mean > 0.0 && (t > t_crit || sign_p < 0.5 * alpha),
+        }
+    }
+}
+
+/// The lack-of-fit test on the noise model's own weights (dispersion 1), at `state`.
+pub(super) fn plain_lack_of_fit(
+    p: &Problem,
+    state: &State,
+    slots: &[Slot],
+) -> Result<(LackOfFit, DMatrix<f64>), DiscoverError> {
+    let mut plain = p.clone();
+    plain.dispersion = (1.0, 1.0);
+    let lin = fit::linearise(&plain, state, slots)?;
+    Ok(lack_of_fit(&plain, &lin))
+}
