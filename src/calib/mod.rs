@@ -1,9 +1,13 @@
 //! Calibration: measurement datasets and the seed paper's two-level Levenberg–Marquardt
-//! identification of the flexible geometric model.
+//! identification of the flexible geometric model — `dataset` (the CSV and sidecar),
+//! `base` (the inner level), `fit` (the outer level and its stages), `weights` (how rows are
+//! weighed, from the measured noise), `evaluate` (errors per load, floors), `report`,
+//! `collect` (gathering through the daemon).
 
 pub mod base;
 pub mod collect;
 pub mod dataset;
+pub mod evaluate;
 pub mod fit;
 pub mod report;
 pub(crate) mod weights;
