@@ -167,6 +167,15 @@ fn sets_without_repeats_calibrate_on_a_stated_assumption() {
         "{mean} vs {}",
         set.val_floor_mm
     );
+    // Discovery runs on the same assumption, says so, and names nothing on this clean set.
+    let d = discover(&res.model, &cal, Some(&val), &DiscoverOptions::default()).unwrap();
+    assert_eq!(d.noise_after.model.structure, Structure::Assumed);
+    assert!(d.noise_after.model.assumption.is_some());
+    assert!(
+        d.effects.is_empty(),
+        "{:?}",
+        d.effects.iter().map(|e| &e.label).collect::<Vec<_>>()
+    );
 }
 
 fn discovered(set: &indep::Set, start: &Model, tag: &str) -> Discovery {
