@@ -493,7 +493,9 @@ pub fn discover(
             .map(|(a, b)| a - b)
             .collect();
         let test = Paired::new(&d, opts.alpha);
-        if !(test.pass && g2 < g_prev && g2 < gap) {
+        // The statistic is the whitened held-out cost; the RMS position error (a secondary,
+        // unweighted measure) may not grow by more than 1 % with it.
+        if !(test.pass && g2 <= 1.01 * g_prev) {
             let label = e.label();
             if let Some(step) = steps.last_mut() {
                 step.accepted = None;
