@@ -78,10 +78,17 @@ fn the_model_file_compensates_the_run_time_effects_exactly_as_discovery_predicts
         (Slot::JointErr(2, 5), -2e-4),
         (Slot::JointErr(0, 10), 4e-4),
         (Slot::JointErr(4, 8), 1e-4),
+        // Generic terms localised outside the library: q² on J2, q³ on J1.
+        (Slot::JointErr(1, 11), -4e-4),
+        (Slot::JointErr(0, 12), 3e-4),
     ] {
         s.set(slot, v);
     }
     let model = s.to_model().unwrap();
+    assert_eq!(
+        model.data().joint_errors[1].unwrap().polynomial,
+        [-4e-4, 0.0]
+    );
     // The file round-trips.
     let back = Model::from_yaml_str(&model.to_yaml(), "test").unwrap();
     assert_eq!(back.data(), model.data());
