@@ -99,3 +99,13 @@ pub fn calibrated_and_nominal(seed: u64) -> (pa10::sim::experiment::Campaign, Mo
     .expect("base fit");
     (camp, calibrated, nominal)
 }
+
+/// The daemon tests run in real time (a control thread and a simulator thread each): one at
+/// a time, and never beside the CPU-heavy tests (the independent generator's campaigns), so
+/// that two-core CI machines do not starve their cycles.
+static REALTIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// Holds the real-time lock (see [`REALTIME`]) until dropped.
+pub fn realtime_lock() -> std::sync::MutexGuard<'static, ()> {
+    REALTIME.lock().unwrap_or_else(|p| p.into_inner())
+}

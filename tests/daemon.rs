@@ -13,13 +13,7 @@ use serde_json::{Value, json};
 
 const SEED: u64 = 3;
 
-/// The daemon tests run in real time (a control thread and a simulator thread each): one at
-/// a time, so that two-core CI machines do not starve their cycles.
-static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
-
-fn serial() -> std::sync::MutexGuard<'static, ()> {
-    SERIAL.lock().unwrap_or_else(|p| p.into_inner())
-}
+use crate::common::realtime_lock as serial;
 
 fn temp_dir(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("pa10-daemon-{tag}-{}", std::process::id()));

@@ -38,6 +38,8 @@ const ARCMIN: f64 = std::f64::consts::PI / (180.0 * 60.0);
 
 /// Writes `set` to a fresh temporary directory and loads it back (sidecar included).
 fn load(set: &indep::Set, tag: &str) -> (Dataset, Dataset) {
+    // Callers hold the real-time lock: these campaigns load both cores, which would starve a
+    // real-time daemon test running beside them.
     let dir = std::env::temp_dir().join(format!("pa10-indep-{tag}-{}", std::process::id()));
     let (cal, val) = write(set, &dir);
     let out = (Dataset::load(&cal).unwrap(), Dataset::load(&val).unwrap());
@@ -67,6 +69,7 @@ fn within(est: f64, truth: f64, tol: f64) -> bool {
 /// same structure and validates within 1.15× of the generator's own floor.
 #[test]
 fn noise_is_measured_and_calibration_reaches_the_floor_on_every_family() {
+    let _cpu = crate::common::realtime_lock();
     for fam in families() {
         let set = generate(&Spec::paper(11, fam));
         let (cal, val) = load(&set, fam.name);
@@ -146,6 +149,7 @@ fn validation_mean(model: &Model, val: &Dataset) -> f64 {
 /// still works.
 #[test]
 fn sets_without_repeats_calibrate_on_a_stated_assumption() {
+    let _cpu = crate::common::realtime_lock();
     let fam = families()[0];
     let set = generate(&Spec {
         repeats: 1,
@@ -186,6 +190,7 @@ fn discovered(set: &indep::Set, start: &Model, tag: &str) -> Discovery {
 /// On clean sets of every family, discovery from the calibrated model names nothing.
 #[test]
 fn discovery_names_nothing_on_clean_independent_sets() {
+    let _cpu = crate::common::realtime_lock();
     for fam in families() {
         let set = generate(&Spec::paper(13, fam));
         let (cal, _) = load(&set, "clean-cal");
@@ -210,6 +215,7 @@ fn discovery_names_nothing_on_clean_independent_sets() {
 /// A J4 spring the paper's model lacks is named on J4, on every family.
 #[test]
 fn discovery_names_a_hidden_j4_spring_on_every_family() {
+    let _cpu = crate::common::realtime_lock();
     for fam in families() {
         let set = generate(&Spec {
             hidden: Hidden::SpringJ4(4000.0),
@@ -239,6 +245,7 @@ fn discovery_names_a_hidden_j4_spring_on_every_family() {
 /// by the generic dictionary — and the gap ends within 1.25× the floor.
 #[test]
 fn an_out_of_library_effect_is_localised_on_its_joint() {
+    let _cpu = crate::common::realtime_lock();
     for fam in families() {
         let set = generate(&Spec {
             hidden: Hidden::Poly(0, 3, 3e-4),
@@ -267,6 +274,7 @@ fn an_out_of_library_effect_is_localised_on_its_joint() {
 /// nothing on the other joints), and closes the gap.
 #[test]
 fn discovery_from_the_nominal_model_finds_the_papers_springs() {
+    let _cpu = crate::common::realtime_lock();
     let set = generate(&Spec::paper(16, families()[0]));
     let (cal, _) = load(&set, "nominal");
     let d = discover(&Model::nominal(), &cal, None, &DiscoverOptions::default()).unwrap();
