@@ -32,7 +32,7 @@
 
 use std::collections::BTreeMap;
 
-use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector3, Vector6};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector6};
 use serde::Serialize;
 
 use crate::stats::{chi2_quantile, chi2_sf};
@@ -118,14 +118,6 @@ impl Interval {
             value: s2.sqrt(),
             lo: (dof * s2 / chi2_quantile(0.975, dof)).sqrt(),
             hi: (dof * s2 / chi2_quantile(0.025, dof)).sqrt(),
-        }
-    }
-
-    fn scaled(self, k: f64) -> Self {
-        Self {
-            value: self.value * k,
-            lo: self.lo * k,
-            hi: self.hi * k,
         }
     }
 }
@@ -710,19 +702,6 @@ pub fn sym_pow(m: &Matrix6<f64>, power: f64) -> Matrix6<f64> {
     e.eigenvectors * Matrix6::from_diagonal(&d) * e.eigenvectors.transpose()
 }
 
-/// Rotation vector of `r` relative to `r0` (for callers building orientation residuals).
-pub fn rotation_deviation(r: &Matrix3<f64>, r0: &Matrix3<f64>) -> Vector3<f64> {
-    let m = nalgebra::Rotation3::from_matrix_unchecked(r * r0.transpose());
-    m.scaled_axis()
-}
-
-impl Interval {
-    /// The interval in other units (`k` per unit of this one).
-    pub fn in_units(self, k: f64) -> Self {
-        self.scaled(k)
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -841,8 +820,10 @@ mod tests {
     #[test]
     fn the_instrument_axes_are_those_of_the_instrument_frame() {
         // The base frame is the instrument frame turned 90° about z: x and y swap.
-        let r =
-            nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), 0.5 * std::f64::consts::PI);
+        let r = nalgebra::Rotation3::from_axis_angle(
+            &nalgebra::Vector3::z_axis(),
+            0.5 * std::f64::consts::PI,
+        );
         let mut s = rows(0.0, 0.0, INST, false, 5);
         let r6 = rot6(r.matrix());
         for x in &mut s {
