@@ -120,6 +120,9 @@ pub enum CalibError {
     /// The optimiser failed on every start.
     #[error("the optimisation failed on every start: {0}")]
     Failed(String),
+    /// The data's noise could not be estimated.
+    #[error("dataset: {0}")]
+    Noise(#[from] crate::noise::NoiseError),
 }
 
 /// A parameter combination the data cannot determine.
@@ -668,8 +671,7 @@ pub fn calibrate(
             let placed = m0.with_base_from_instrument(&base::frame_from_psi(&psi0))?;
             let samples = weights::samples(data, &placed, &rows);
             let rot = *placed.base_from_instrument().rotation.matrix();
-            let nm = crate::noise::within(&samples, &rot, &prior)
-                .map_err(|e| CalibError::Data(e.to_string()))?;
+            let nm = crate::noise::within(&samples, &rot, &prior)?;
             // The part of the resolver's specified uncertainty the readings do not carry is
             // presumably repeatable: start from it as a shared offset (the estimate follows).
             let reading2 = nm
@@ -814,8 +816,7 @@ pub fn calibrate(
             let model = model.with_base_from_instrument(&base::frame_from_psi(&psi_all))?;
             let samples = weights::samples(data, &model, &rows);
             let rot = *model.base_from_instrument().rotation.matrix();
-            let nm = crate::noise::estimate(&samples, &rot, between_dof, &prior)
-                .map_err(|e| CalibError::Data(e.to_string()))?;
+            let nm = crate::noise::estimate(&samples, &rot, between_dof, &prior)?;
             // Between-configuration variance beyond the resolver's specification is a
             // misfit (a missing effect), not noise: the weights use at most the prior.
             let sigma = if nm.structure.shares_offsets() {

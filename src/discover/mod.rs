@@ -107,6 +107,9 @@ pub enum DiscoverError {
     /// The starting fit failed.
     #[error(transparent)]
     Calib(#[from] crate::calib::fit::CalibError),
+    /// The data's noise could not be estimated.
+    #[error("dataset: {0}")]
+    Noise(#[from] crate::noise::NoiseError),
 }
 
 /// The held-out error, in noise floors, below which the gap counts as closed.

@@ -79,8 +79,7 @@ pub(super) fn problem(
     };
     let between_dof = (6 * train_blocks) as f64 - n_params as f64;
     let rot = *geom.base_from_instrument().rotation.matrix();
-    let model = crate::noise::estimate(&samples, &rot, between_dof.max(1.0), &prior)
-        .map_err(|e| DiscoverError::Data(e.to_string()))?;
+    let model = crate::noise::estimate(&samples, &rot, between_dof.max(1.0), &prior)?;
     let repeatable_used = model.repeatable_rad.value.min(prior.resolver_rad);
     let d: Vec<nalgebra::Matrix6<f64>> = lay
         .obs
