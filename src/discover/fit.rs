@@ -132,10 +132,13 @@ impl Problem {
     /// Whitens per-observation vectors (residuals or a Jacobian column) into `out`:
     /// per block the whitened weighted mean, then every row's whitened deviation from it.
     pub fn whiten(&self, raw: &[Vector6<f64>], out: &mut [f64]) {
-        let (km, kd) = (
-            1.0 / self.dispersion.0.sqrt(),
-            1.0 / self.dispersion.1.sqrt(),
-        );
+        self.whiten_with(raw, out, self.dispersion);
+    }
+
+    /// [`Problem::whiten`] with the strata scaled by `dispersion` instead of the problem's
+    /// own.
+    pub fn whiten_with(&self, raw: &[Vector6<f64>], out: &mut [f64], dispersion: (f64, f64)) {
+        let (km, kd) = (1.0 / dispersion.0.sqrt(), 1.0 / dispersion.1.sqrt());
         for b in &self.blocks {
             let mean = self.weighted_mean(raw, &b.rows, &b.p_inv);
             let m = b.wmean * mean * km;
@@ -179,15 +182,15 @@ impl Problem {
     }
 }
 
-/// The problem reweighted for fitting a model that misfits grossly: each stratum (the
+/// The dispersions for fitting a model that misfits grossly: each stratum (the
 /// configuration means, the deviations from them) scaled by its own whitened mean square
-/// at `raw` (at least 1). A model missing a large effect otherwise trades a huge
-/// within-configuration misfit (weighted by the instrument's micrometres) for a contorted
+/// at `raw` on the noise model's weights (at least 1). A model missing a large effect
+/// otherwise trades a huge within-configuration misfit (weighted by the instrument's micrometres) for a contorted
 /// geometry that wrecks every prediction; balanced, the fit spreads the misfit as a
 /// quasi-likelihood would. Tests and scores always use the unbalanced problem.
-pub(crate) fn balanced(p: &Problem, raw: &[Vector6<f64>]) -> Problem {
+pub(crate) fn balanced(p: &Problem, raw: &[Vector6<f64>]) -> (f64, f64) {
     let mut white = vec![0.0; p.n_white];
-    p.whiten(raw, &mut white);
+    p.whiten_with(raw, &mut white, (1.0, 1.0));
     let (mut sm, mut nm, mut sd, mut nd) = (0.0, 0usize, 0.0, 0usize);
     for b in p.blocks.iter().filter(|b| b.train) {
         sm += white[b.offset..b.offset + 6]
@@ -201,12 +204,10 @@ pub(crate) fn balanced(p: &Problem, raw: &[Vector6<f64>]) -> Problem {
             .sum::<f64>();
         nd += 6 * (b.rows.len() - 1);
     }
-    let mut out = p.clone();
-    out.dispersion = (
-        (sm / nm.max(1) as f64).max(1.0) * p.dispersion.0,
-        (sd / nd.max(1) as f64).max(1.0) * p.dispersion.1,
-    );
-    out
+    (
+        (sm / nm.max(1) as f64).max(1.0),
+        (sd / nd.max(1) as f64).max(1.0),
+    )
 }
 
 /// Levenberg–Marquardt on a [`balanced`] problem, re-balanced at each solution (three
@@ -226,13 +227,11 @@ pub(crate) fn fit_balanced(
     p.dispersion = (1.0, 1.0);
     for _ in 0..3 {
         let raw = p.raw(&st)?;
-        let mut plain = p.clone();
-        plain.dispersion = (1.0, 1.0);
-        let b = balanced(&plain, &raw);
-        if b.dispersion.0 < 1.5 && b.dispersion.1 < 1.5 {
+        let b = balanced(p, &raw);
+        if b.0 < 1.5 && b.1 < 1.5 {
             break;
         }
-        p.dispersion = b.dispersion;
+        p.dispersion = b;
         st = fit(p, &st, slots, prior)?.state;
     }
     fit(p, &st, slots, prior)
