@@ -7,7 +7,7 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use pa10::model::{ExternalLoad, Model, Stiffness};
+use pa10::model::{ExternalLoad, Model, NO_DIRECTION, Stiffness, Torques};
 
 fn calibrated() -> Model {
     let mut d = Model::nominal().data().clone();
@@ -49,10 +49,22 @@ fn bench(c: &mut Criterion) {
         b.iter(|| m.static_torques(black_box(&q), black_box(&load)))
     });
     c.bench_function("compensate (measured torques)", |b| {
-        b.iter(|| m.compensate(black_box(&q), black_box(&tau)))
+        b.iter(|| {
+            m.compensate(
+                black_box(&q),
+                Torques::Given(black_box(&tau)),
+                &NO_DIRECTION,
+            )
+        })
     });
-    c.bench_function("compensate_static (gravity + 44 N)", |b| {
-        b.iter(|| m.compensate_static(black_box(&q), black_box(&load)))
+    c.bench_function("compensate (gravity + 44 N)", |b| {
+        b.iter(|| {
+            m.compensate(
+                black_box(&q),
+                Torques::Gravity(black_box(&load)),
+                &NO_DIRECTION,
+            )
+        })
     });
     c.bench_function("identification_jacobian", |b| {
         b.iter(|| m.identification_jacobian(black_box(&q), black_box(&tau)))

@@ -163,7 +163,17 @@ fn inner_level_alone_recovers_a_known_base_on_noise_free_data() {
             let pa10::calib::dataset::Effort::Torque(tau) = r.effort else {
                 unreachable!()
             };
-            (truth.fk(&truth.link_from_motor(&r.q, &tau)), r.pose)
+            (
+                truth.fk(&truth
+                    .link_from_motor(
+                        &r.q,
+                        pa10::model::Torques::Given(&tau),
+                        &pa10::model::NO_DIRECTION,
+                    )
+                    .unwrap()
+                    .q_link),
+                r.pose,
+            )
         })
         .collect();
     let start = psi_from_frame(truth.base_from_instrument())

@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 use pa10::calib::dataset::Dataset;
 use pa10::discover::effects::{self, Effect, Kind, Obs, Slot, State};
 use pa10::discover::{DiscoverError, DiscoverOptions, Discovery, discover};
-use pa10::model::{Frame, JointError, Model};
+use pa10::model::{Frame, JointError, Model, Torques};
 use pa10::sim::experiment::{DiscoverySpec, discovery_campaign, paper_model, scenarios};
 
 use crate::common::{max_diff, perturbed_model, random_q, rng};
@@ -99,10 +99,16 @@ fn the_model_file_compensates_the_run_time_effects_exactly_as_discovery_predicts
         for dir in [-1.0, 0.0, 1.0] {
             let o = obs(q, tau, 0.0, dir, 0.0);
             let expect = effects::link_angles(&s, &o);
-            let got = model.link_from_motor_dir(&q, &tau, &[dir; 6]);
+            let got = model
+                .link_from_motor(&q, Torques::Given(&tau), &[dir; 6])
+                .unwrap()
+                .q_link;
             assert!(max_diff(&expect, &got) < 1e-12);
             // The daemon's compensation inverts it.
-            let qm = model.compensate_dir(&got, &tau, &[dir; 6]).unwrap();
+            let qm = model
+                .compensate(&got, Torques::Given(&tau), &[dir; 6])
+                .unwrap()
+                .q_motor;
             assert!(max_diff(&qm, &q) < 1e-12, "{qm:?} vs {q:?}");
         }
     }

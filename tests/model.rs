@@ -3,7 +3,10 @@
 use std::f64::consts::FRAC_PI_2;
 
 use nalgebra::{Rotation3, Translation3, Vector3};
-use pa10::model::{ExternalLoad, Frame, IkError, Model, PARAM_COUNT, STIFF_JOINTS, pose_error};
+use pa10::model::{
+    ExternalLoad, Frame, IkError, Model, NO_DIRECTION, PARAM_COUNT, STIFF_JOINTS, Torques,
+    pose_error,
+};
 use rand::RngExt;
 
 use crate::common::{max_diff, perturbed_model, random_q, rng};
@@ -144,8 +147,14 @@ fn identification_jacobian_matches_finite_differences() {
             pm[i] -= h;
             let fp = m.with_params(&pp).unwrap();
             let fm = m.with_params(&pm).unwrap();
-            let tp = fp.fk(&fp.link_from_motor(&q_motor, &tau));
-            let tm = fm.fk(&fm.link_from_motor(&q_motor, &tau));
+            let tp = fp.fk(&fp
+                .link_from_motor(&q_motor, Torques::Given(&tau), &NO_DIRECTION)
+                .unwrap()
+                .q_link);
+            let tm = fm.fk(&fm
+                .link_from_motor(&q_motor, Torques::Given(&tau), &NO_DIRECTION)
+                .unwrap()
+                .q_link);
             let fd = pose_error(&tp, &tm) / (2.0 * h);
             let col = jac.column(i);
             let scale = fd.norm().max(1e-12);
@@ -300,15 +309,27 @@ fn compensation_round_trips_with_known_and_gravity_torques() {
         let m = perturbed_model(&mut r);
         let q = random_q(&mut r, &m);
         let tau: [f64; 6] = std::array::from_fn(|_| r.random_range(-200.0..200.0));
-        let qm = m.compensate(&q, &tau).unwrap();
-        assert!(max_diff(&m.link_from_motor(&qm, &tau), &q) < 1e-15);
+        let qm = m
+            .compensate(&q, Torques::Given(&tau), &NO_DIRECTION)
+            .unwrap()
+            .q_motor;
+        let back = m
+            .link_from_motor(&qm, Torques::Given(&tau), &NO_DIRECTION)
+            .unwrap();
+        assert!(max_diff(&back.q_link, &q) < 1e-15);
         let load = ExternalLoad::hung(r.random_range(0.0..90.0), &m.gravity());
-        let (qm, tau_used) = m.compensate_static(&q, &load).unwrap();
+        let c = m
+            .compensate(&q, Torques::Gravity(&load), &NO_DIRECTION)
+            .unwrap();
+        let (qm, tau_used) = (c.q_motor, c.tau);
         for &j in &STIFF_JOINTS {
             let s = m.stiffness(j).unwrap();
             assert!((s.torque(qm[j] - q[j]) - tau_used[j]).abs() < 1e-9);
         }
-        let (back, _) = m.link_from_motor_static(&qm, &load).unwrap();
+        let back = m
+            .link_from_motor(&qm, Torques::Gravity(&load), &NO_DIRECTION)
+            .unwrap()
+            .q_link;
         assert!(max_diff(&back, &q) < 1e-12, "{}", max_diff(&back, &q));
     }
 }
@@ -317,11 +338,19 @@ fn compensation_round_trips_with_known_and_gravity_torques() {
 fn compensation_rejects_non_finite_input() {
     let m = Model::nominal();
     let e = m
-        .compensate(&[0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0], &[0.0; 6])
+        .compensate(
+            &[0.0, f64::NAN, 0.0, 0.0, 0.0, 0.0],
+            Torques::Given(&[0.0; 6]),
+            &NO_DIRECTION,
+        )
         .unwrap_err();
     assert!(e.to_string().contains("q_link[1]"), "{e}");
     let e = m
-        .compensate(&[0.0; 6], &[0.0, 0.0, f64::INFINITY, 0.0, 0.0, 0.0])
+        .compensate(
+            &[0.0; 6],
+            Torques::Given(&[0.0, 0.0, f64::INFINITY, 0.0, 0.0, 0.0]),
+            &NO_DIRECTION,
+        )
         .unwrap_err();
     assert!(e.to_string().contains("tau[2]"), "{e}");
 }
@@ -336,7 +365,10 @@ fn loaded_deflection_matches_the_facts_sheet() {
     });
     let m = Model::new(d).unwrap();
     let q = [0.0, FRAC_PI_2, 0.0, 0.0, 0.0, 0.0];
-    let (qm, _) = m.compensate_static(&q, &ExternalLoad::NONE).unwrap();
+    let qm = m
+        .compensate(&q, Torques::Gravity(&ExternalLoad::NONE), &NO_DIRECTION)
+        .unwrap()
+        .q_motor;
     assert!(
         ((q[1] - qm[1]).abs() - 4.08e-3).abs() < 0.02e-3,
         "{}",

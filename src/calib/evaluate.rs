@@ -42,7 +42,7 @@ pub fn evaluate(
         })
         .collect();
     for r in &rows {
-        let pred = model.fk(&model.link_from_motor(&r.q, &r.tau));
+        let pred = model.fk(&model.link_angles(&r.q, &r.tau));
         let meas = base * r.meas;
         let e = crate::model::pose_error(&pred, &meas);
         let pe = e.fixed_rows::<3>(0).norm() * 1e3;
@@ -79,7 +79,7 @@ pub fn fit_base_only(
     let pairs: Vec<(Frame, Frame)> = rows
         .iter()
         .filter(|r| r.inner)
-        .map(|r| (m.fk(&m.link_from_motor(&r.q, &r.tau)), r.meas))
+        .map(|r| (m.fk(&m.link_angles(&r.q, &r.tau)), r.meas))
         .collect();
     let (psi, _) = base::fit_psi(&pairs, &psi0, opts.r_max);
     Ok(m.with_base_from_instrument(&base::frame_from_psi(&psi))?)
@@ -97,7 +97,7 @@ pub fn resolver_floor(
     let rows = prepare(data, &[], kt)?;
     let mut out: Vec<(f64, f64, usize)> = data.loads().into_iter().map(|l| (l, 0.0, 0)).collect();
     for r in &rows {
-        let q = model.link_from_motor(&r.q, &r.tau);
+        let q = model.link_angles(&r.q, &r.tau);
         let cov = crate::accuracy::linear::position_covariance(model, &q, &[sigma_rad; 6]);
         let mean = crate::accuracy::linear::norm_stats(&cov).mean * 1e3;
         if let Some(o) = out.iter_mut().find(|o| o.0 == r.load_n) {
@@ -131,7 +131,7 @@ pub fn row_residual(
     meas: &Frame,
     r_max: f64,
 ) -> Vector6<f64> {
-    let pred = model.fk(&model.link_from_motor(q, tau));
+    let pred = model.fk(&model.link_angles(q, tau));
     let b = *model.base_from_instrument();
     base::residual_and_psi_jacobian(&pred, meas, &base::psi_from_frame(&b), &b, r_max).0
 }

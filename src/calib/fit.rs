@@ -379,7 +379,7 @@ impl<'a> Outer<'a> {
     fn predictions(&self, model: &Model) -> Vec<Frame> {
         self.rows
             .iter()
-            .map(|r| model.fk(&model.link_from_motor(&r.q, &r.tau)))
+            .map(|r| model.fk(&model.link_angles(&r.q, &r.tau)))
             .collect()
     }
 
@@ -388,7 +388,7 @@ impl<'a> Outer<'a> {
             .rows
             .iter()
             .filter(|r| r.inner)
-            .map(|r| (model.fk(&model.link_from_motor(&r.q, &r.tau)), r.meas))
+            .map(|r| (model.fk(&model.link_angles(&r.q, &r.tau)), r.meas))
             .collect();
         base::fit_psi(&pairs, start, self.opts.r_max).0
     }
@@ -518,7 +518,7 @@ pub(crate) fn seed_base(
         .iter()
         .map(|r| {
             model
-                .fk(&model.link_from_motor(&r.q, &r.tau))
+                .fk(&model.link_angles(&r.q, &r.tau))
                 .translation
                 .vector
         })
@@ -810,7 +810,7 @@ pub fn calibrate(
             // the inner configurations' own errors are not counted as resolver error.
             let pairs: Vec<(Frame, Frame)> = rows
                 .iter()
-                .map(|r| (model.fk(&model.link_from_motor(&r.q, &r.tau)), r.meas))
+                .map(|r| (model.fk(&model.link_angles(&r.q, &r.tau)), r.meas))
                 .collect();
             let (psi_all, _) = base::fit_psi(&pairs, &psi, opts.r_max);
             let model = model.with_base_from_instrument(&base::frame_from_psi(&psi_all))?;

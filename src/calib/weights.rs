@@ -181,7 +181,7 @@ pub(crate) fn whitening(data: &Dataset, model: &Model, rows: &[Prepared], r_max:
     let sr = res_arcmin * crate::accuracy::ARCMIN;
     let (mut acc, mut tacc) = ([0.0; 6], [0.0; 6]);
     for r in rows {
-        let j = model.jacobian(&model.link_from_motor(&r.q, &r.tau));
+        let j = model.jacobian(&model.link_angles(&r.q, &r.tau));
         for c in 0..6 {
             let scale = if c < 3 { 1.0 / r_max } else { 1.0 };
             acc[c] += (0..6)
@@ -236,7 +236,7 @@ pub(crate) fn samples(data: &Dataset, model: &Model, rows: &[Prepared]) -> Vec<S
                 cells.push(key);
                 cells.len() - 1
             });
-            let q = model.link_from_motor(&r.q, &r.tau);
+            let q = model.link_angles(&r.q, &r.tau);
             let jq = model.jacobian(&q);
             let mut jt = jq;
             for j in 0..6 {

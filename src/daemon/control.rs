@@ -12,7 +12,7 @@
 //!   plus the configured payload at the link setpoint (noise-free, exact only when the
 //!   model's bodies and the payload are right).
 //! - **Compensation**: the motor target that puts the *link* at the setpoint,
-//!   `q_motor = q_link + δ(τ) + e(q_motor) + (b/2)·dir` ([`Model::compensate_dir`]: springs,
+//!   `q_motor = q_link + δ(τ) + e(q_motor) + (b/2)·dir` ([`Model::compensate`]: springs,
 //!   and the transmission error, eccentricity and backlash `pa10 discover` may add; `dir` is
 //!   the direction each joint last moved in).
 //! - **Position loop**: `speed = q̇_setpoint + K·(q_motor_target − q_motor_measured)`,
@@ -23,7 +23,7 @@
 
 use super::config::TorqueSource;
 use super::motion::{Move, MoveError, Setpoint};
-use crate::model::{ExternalLoad, Model};
+use crate::model::{ExternalLoad, Model, NO_DIRECTION, Torques};
 
 /// The joint state of one cycle, as decoded from the six FEEDBACK frames.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -141,8 +141,8 @@ impl Controller {
     pub fn new(model: Model, p: LoopParams, first: &JointState) -> Self {
         let load = ExternalLoad::hung(p.payload_n, &model.gravity());
         let q_link = model
-            .link_from_motor_static(&first.q_motor, &load)
-            .map(|(q, _)| q)
+            .link_from_motor(&first.q_motor, Torques::Gravity(&load), &NO_DIRECTION)
+            .map(|c| c.q_link)
             .unwrap_or(first.q_motor);
         Self {
             model,
@@ -236,8 +236,8 @@ impl Controller {
             self.setpoint = Setpoint {
                 q: self
                     .model
-                    .link_from_motor_static(&s.q_motor, &load)
-                    .map(|(q, _)| q)
+                    .link_from_motor(&s.q_motor, Torques::Gravity(&load), &self.direction)
+                    .map(|c| c.q_link)
                     .unwrap_or(s.q_motor),
                 qd: [0.0; 6],
             };
@@ -335,15 +335,16 @@ impl Controller {
                 *d = v.signum();
             }
         }
-        let target = match self
-            .model
-            .compensate_dir(&self.setpoint.q, &tau, &self.direction)
-        {
-            Ok(t) => t,
-            Err(_) => {
-                return self.fault(Fault::Setpoint(MoveError::NonFinite("compensated target")));
-            }
-        };
+        let target =
+            match self
+                .model
+                .compensate(&self.setpoint.q, Torques::Given(&tau), &self.direction)
+            {
+                Ok(c) => c.q_motor,
+                Err(_) => {
+                    return self.fault(Fault::Setpoint(MoveError::NonFinite("compensated target")));
+                }
+            };
         let lim = self.model.limits();
         let mut out = [0.0; 6];
         for j in 0..6 {

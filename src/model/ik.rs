@@ -239,35 +239,35 @@ impl Model {
     }
 
     /// Motor-side joint targets that put the *tool* at `target` (base frame) with `load`
-    /// hung at the tool: the IK solution nearest `reference` (link angles), compensated for
-    /// the deflection under gravity and the load. Returns `(q_motor, q_link)`, rad.
+    /// hung at the tool: the IK solution nearest `reference` (link angles, rad), through
+    /// [`Model::compensate`] with gravity and the load (springs and joint errors, backlash
+    /// on the side of `dir`, −1/0/+1 per joint).
     ///
     /// ```
-    /// use pa10::model::{ExternalLoad, Model, Stiffness};
+    /// use pa10::model::{ExternalLoad, Model, NO_DIRECTION, Stiffness};
     /// let mut d = Model::nominal().data().clone();
     /// d.stiffness[1] = Some(Stiffness { klin: 1.98e4, kcub: 3.35e7 });
     /// let m = Model::new(d).unwrap();
     /// let q = [0.1, 0.8, 0.9, 0.0, 0.6, 0.0];
     /// let load = ExternalLoad::hung(44.0, &m.gravity());
-    /// let (q_motor, q_link) = m.compensate_pose(&m.fk(&q), &load, &q).unwrap();
-    /// assert!((0..6).all(|j| (q_link[j] - q[j]).abs() < 1e-9));
+    /// let c = m.compensate_pose(&m.fk(&q), &load, &q, &NO_DIRECTION).unwrap();
+    /// assert!((0..6).all(|j| (c.q_link[j] - q[j]).abs() < 1e-9));
     /// // the drive leads the link by the spring's deflection (J2 carries ~ −150 N·m here)
-    /// assert!(q_motor[1] < q_link[1] - 1e-3);
+    /// assert!(c.q_motor[1] < c.q_link[1] - 1e-3);
     /// ```
     pub fn compensate_pose(
         &self,
         target: &Frame,
         load: &super::statics::ExternalLoad,
         reference: &[f64; 6],
-    ) -> Result<([f64; 6], [f64; 6]), IkError> {
+        dir: &[f64; 6],
+    ) -> Result<super::statics::Compensation, IkError> {
         if !load.force.iter().all(|v| v.is_finite()) {
             return Err(IkError::NonFinite);
         }
         let q_link = self.ik_nearest(target, reference)?;
-        let (q_motor, _) = self
-            .compensate_static(&q_link, load)
-            .map_err(|_| IkError::NonFinite)?;
-        Ok((q_motor, q_link))
+        self.compensate(&q_link, super::statics::Torques::Gravity(load), dir)
+            .map_err(|_| IkError::NonFinite)
     }
 
     /// The solution nearest to `reference` (link angles, rad).

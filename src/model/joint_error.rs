@@ -69,6 +69,10 @@ impl Default for JointError {
     }
 }
 
+/// Largest slope |de/dq| a joint error may have, rad/rad: the compensation's fixed point
+/// contracts by at least this factor per iteration.
+pub const MAX_SLOPE: f64 = 0.5;
+
 impl JointError {
     /// The periodic part `e(q)` (rad) at motor-side angle `q` (rad): transmission error plus
     /// eccentricity (evaluated at the motor angle; the two differ by the spring deflection,
@@ -95,6 +99,23 @@ impl JointError {
     #[inline]
     pub fn offset(&self, q: f64, dir: f64) -> f64 {
         self.periodic(q) + 0.5 * self.backlash * dir
+    }
+
+    /// An upper bound of |de/dq| (rad/rad) over |q| ≤ 2π: the contraction constant of the
+    /// fixed point [`Model::compensate`](super::Model::compensate) solves.
+    pub fn max_slope(&self) -> f64 {
+        let n = self.gear_ratio;
+        let mut s = 0.0;
+        for h in 0..2 {
+            let k = (h + 1) as f64;
+            s += k * (self.output[h][0].abs() + self.output[h][1].abs());
+            s += k * n * (self.wave[h][0].abs() + self.wave[h][1].abs());
+        }
+        let r = std::f64::consts::TAU;
+        s + self.eccentricity[0].abs()
+            + self.eccentricity[1].abs()
+            + 2.0 * r * self.polynomial[0].abs()
+            + 3.0 * r * r * self.polynomial[1].abs()
     }
 
     /// Validates the values; `key` names the entry in errors.
@@ -131,6 +152,16 @@ impl JointError {
                     format!("coefficients must be finite and within ±0.01 rad/radⁿ, got {v}"),
                 ));
             }
+        }
+        let slope = self.max_slope();
+        if slope > MAX_SLOPE {
+            return Err((
+                key.to_string(),
+                format!(
+                    "the error's slope can reach {slope:.3} rad/rad (harmonic k of the wave generator \
+                     counts k × gear_ratio); above {MAX_SLOPE} the compensation is not invertible"
+                ),
+            ));
         }
         if !(self.backlash.is_finite() && (0.0..=0.01).contains(&self.backlash)) {
             return Err((

@@ -138,7 +138,7 @@ impl Model {
     /// `q_motor − δ(τ)`, so the stiffness columns are the joint columns times `∂q/∂K`.
     /// The columns of a rigid joint's stiffness are zero.
     pub fn identification_jacobian(&self, q_motor: &[f64; 6], tau: &[f64; 6]) -> IdentJacobian {
-        let q = self.link_from_motor(q_motor, tau);
+        let q = self.link_angles(q_motor, tau);
         let f = self.frames(&q);
         let p = (f[6] * self.tool).translation.vector;
         let mut jac = IdentJacobian::zeros();

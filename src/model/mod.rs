@@ -34,4 +34,4 @@ pub use params::{
     Departure, DhRow, PARAM_COUNT, ParamVector, STIFF_JOINTS, param_names, param_units,
 };
 pub use robot::{Body, JointLimits, Model, ModelError, NOMINAL_YAML};
-pub use statics::ExternalLoad;
+pub use statics::{Compensation, ExternalLoad, NO_DIRECTION, Torques};

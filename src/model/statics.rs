@@ -1,6 +1,7 @@
 //! Static joint torques (gravity of the links plus an external force at the tool) and the
-//! compliance maps between link-side and motor-side joint angles, including the
-//! per-cycle compensation `q_motor = q_link + δ(τ)`.
+//! compliance relation between link-side and motor-side joint angles: one
+//! [`Model::compensate`] (link → motor, the per-cycle step) and its exact inverse
+//! [`Model::link_from_motor`], both with the model's springs and joint errors.
 
 use nalgebra::Vector3;
 
@@ -98,22 +99,16 @@ impl Model {
         d
     }
 
-    /// Link angles from resolver (motor-side) angles under known torques:
-    /// `q − δ(τ) − e(q)`, with `e` the joint errors (periodic part; backlash centred).
+    /// Link angles from resolver angles under torques `tau` (N·m) held fixed, with the
+    /// backlash centred: `q_motor − δ(τ) − e(q_motor)`. The calibration's inner loop (its
+    /// rows are validated once, on load); everything else uses [`Model::link_from_motor`].
     #[inline]
-    pub fn link_from_motor(&self, q_motor: &[f64; 6], tau: &[f64; 6]) -> [f64; 6] {
-        self.link_from_motor_dir(q_motor, tau, &[0.0; 6])
+    pub(crate) fn link_angles(&self, q_motor: &[f64; 6], tau: &[f64; 6]) -> [f64; 6] {
+        self.link_angles_dir(q_motor, tau, &NO_DIRECTION)
     }
 
-    /// [`Model::link_from_motor`] after an approach in direction `dir` (−1, 0, +1 per
-    /// joint), which selects the side of each joint's backlash.
     #[inline]
-    pub fn link_from_motor_dir(
-        &self,
-        q_motor: &[f64; 6],
-        tau: &[f64; 6],
-        dir: &[f64; 6],
-    ) -> [f64; 6] {
+    fn link_angles_dir(&self, q_motor: &[f64; 6], tau: &[f64; 6], dir: &[f64; 6]) -> [f64; 6] {
         let d = self.deflections(tau);
         let e = &self.data().joint_errors;
         std::array::from_fn(|j| {
@@ -122,45 +117,18 @@ impl Model {
         })
     }
 
-    /// **The compensation step**: motor-side targets that put the *link* at `q_link`
-    /// (rad) under joint torques `tau` (N·m): `q_motor = q_link + δ(τ)`.
-    ///
-    /// Errors when an input is not finite; nothing else can fail.
-    ///
-    /// ```
-    /// use pa10::model::{Model, Stiffness};
-    /// let mut data = Model::nominal().data().clone();
-    /// data.stiffness[1] = Some(Stiffness { klin: 1.98e4, kcub: 0.0 });
-    /// let m = Model::new(data).unwrap();
-    /// let qm = m.compensate(&[0.0, 0.5, 0.0, 0.0, 0.0, 0.0], &[0.0, 19.8, 0.0, 0.0, 0.0, 0.0]).unwrap();
-    /// assert!((qm[1] - 0.501).abs() < 1e-12); // 19.8 N·m / 1.98e4 N·m/rad = 1 mrad ahead
-    /// ```
+    /// Motor angles that put the link at `q` under `tau`: solves
+    /// `q_motor = q + δ(τ) + e(q_motor) + (b/2)·dir` (the periodic error `e` by fixed-point
+    /// iteration, contracting because the model validates |e′| ≤ 0.5).
     #[inline]
-    pub fn compensate(&self, q_link: &[f64; 6], tau: &[f64; 6]) -> Result<[f64; 6], ModelError> {
-        self.compensate_dir(q_link, tau, &[0.0; 6])
-    }
-
-    /// The compensation step including the joint errors: solves
-    /// `q_motor = q_link + δ(τ) + e(q_motor) + (b/2)·dir` (the periodic error `e` by
-    /// fixed-point iteration, contracting because |e′| ≪ 1), with `dir` the direction each
-    /// joint is moving in (−1, 0, +1), so that backlash is taken up on the right side.
-    #[inline]
-    pub fn compensate_dir(
-        &self,
-        q_link: &[f64; 6],
-        tau: &[f64; 6],
-        dir: &[f64; 6],
-    ) -> Result<[f64; 6], ModelError> {
-        check_finite("q_link", q_link)?;
-        check_finite("tau", tau)?;
-        check_finite("dir", dir)?;
+    fn motor_angles_dir(&self, q: &[f64; 6], tau: &[f64; 6], dir: &[f64; 6]) -> [f64; 6] {
         let d = self.deflections(tau);
-        let mut out: [f64; 6] = std::array::from_fn(|j| q_link[j] + d[j]);
+        let mut out: [f64; 6] = std::array::from_fn(|j| q[j] + d[j]);
         for (j, e) in self.data().joint_errors.iter().enumerate() {
             if let Some(e) = e {
                 let base = out[j];
                 let mut qm = base;
-                for _ in 0..12 {
+                for _ in 0..MAX_FIXED_POINT {
                     let next = base + e.offset(qm, dir[j]);
                     let step = (next - qm).abs();
                     qm = next;
@@ -171,58 +139,97 @@ impl Model {
                 out[j] = qm;
             }
         }
-        Ok(out)
+        out
     }
 
-    /// The compensation step with torques from the model's gravity and `load`:
-    /// `q_motor = q_link + δ(τ_static(q_link))`. Returns the motor targets and the torques
-    /// used (N·m).
+    /// **The compensation step**: the motor (resolver) angles that put the *link* at
+    /// `q_link` (rad), `q_motor = q_link + δ(τ) + e(q_motor) + (b/2)·dir`, with
+    ///
+    /// - `δ(τ)` the spring deflections under the joint torques `torques` (N·m): given
+    ///   (measured), or those of gravity and a load at `q_link` ([`Torques::Gravity`]);
+    /// - `e` the joint errors of the model (transmission error, eccentricity, polynomial
+    ///   terms) and `b` each joint's backlash, taken up on the side of `dir` (−1, 0, +1 per
+    ///   joint: the direction the joint approaches from; 0 centres it, [`NO_DIRECTION`]).
+    ///
+    /// [`Model::link_from_motor`] is its exact inverse. Errors when an input is not finite;
+    /// nothing else can fail.
+    ///
+    /// ```
+    /// use pa10::model::{Model, NO_DIRECTION, Stiffness, Torques};
+    /// let mut data = Model::nominal().data().clone();
+    /// data.stiffness[1] = Some(Stiffness { klin: 1.98e4, kcub: 0.0 });
+    /// let m = Model::new(data).unwrap();
+    /// let tau = [0.0, 19.8, 0.0, 0.0, 0.0, 0.0];
+    /// let c = m.compensate(&[0.0, 0.5, 0.0, 0.0, 0.0, 0.0], Torques::Given(&tau), &NO_DIRECTION).unwrap();
+    /// assert!((c.q_motor[1] - 0.501).abs() < 1e-12); // 19.8 N·m / 1.98e4 N·m/rad = 1 mrad ahead
+    /// let back = m.link_from_motor(&c.q_motor, Torques::Given(&tau), &NO_DIRECTION).unwrap();
+    /// assert!((back.q_link[1] - 0.5).abs() < 1e-15);
+    /// ```
     #[inline]
-    pub fn compensate_static(
+    pub fn compensate(
         &self,
         q_link: &[f64; 6],
-        load: &ExternalLoad,
-    ) -> Result<([f64; 6], [f64; 6]), ModelError> {
-        check_finite("q_link", q_link)?;
-        if !load.force.iter().all(|v| v.is_finite()) {
-            return Err(ModelError::Invalid {
-                key: "load".into(),
-                reason: "force must be finite (N)".into(),
-            });
-        }
-        let tau = self.static_torques(q_link, load);
-        let d = self.deflections(&tau);
-        Ok((std::array::from_fn(|j| q_link[j] + d[j]), tau))
-    }
-
-    /// Link angles from resolver angles when the torques are those of gravity and `load`
-    /// at the (unknown) link configuration: solves `q = q_motor − δ(τ_static(q))` by
-    /// fixed-point iteration to 1e-13 rad. Returns link angles and torques (N·m).
-    pub fn link_from_motor_static(
-        &self,
-        q_motor: &[f64; 6],
-        load: &ExternalLoad,
-    ) -> Result<([f64; 6], [f64; 6]), ModelError> {
-        self.link_from_motor_static_dir(q_motor, load, &[0.0; 6])
-    }
-
-    /// [`Model::link_from_motor_static`] after an approach in direction `dir` (−1, 0, +1
-    /// per joint; selects the backlash side).
-    pub fn link_from_motor_static_dir(
-        &self,
-        q_motor: &[f64; 6],
-        load: &ExternalLoad,
+        torques: Torques<'_>,
         dir: &[f64; 6],
-    ) -> Result<([f64; 6], [f64; 6]), ModelError> {
+    ) -> Result<Compensation, ModelError> {
+        check_finite("q_link", q_link)?;
+        check_finite("dir", dir)?;
+        let tau = match torques {
+            Torques::Given(t) => {
+                check_finite("tau", t)?;
+                *t
+            }
+            Torques::Gravity(load) => {
+                check_load(load)?;
+                self.static_torques(q_link, load)
+            }
+        };
+        Ok(Compensation {
+            q_motor: self.motor_angles_dir(q_link, &tau, dir),
+            q_link: *q_link,
+            tau,
+        })
+    }
+
+    /// The inverse of [`Model::compensate`]: the link angles of resolver angles `q_motor`
+    /// (rad), `q_link = q_motor − δ(τ) − e(q_motor) − (b/2)·dir`. With
+    /// [`Torques::Gravity`] the torques depend on the (unknown) link configuration, so
+    /// `q_link` is solved by fixed-point iteration to 1e-13 rad; the error says so when the
+    /// joints are too compliant for the load to converge.
+    pub fn link_from_motor(
+        &self,
+        q_motor: &[f64; 6],
+        torques: Torques<'_>,
+        dir: &[f64; 6],
+    ) -> Result<Compensation, ModelError> {
         check_finite("q_motor", q_motor)?;
+        check_finite("dir", dir)?;
+        let load = match torques {
+            Torques::Given(t) => {
+                check_finite("tau", t)?;
+                return Ok(Compensation {
+                    q_motor: *q_motor,
+                    q_link: self.link_angles_dir(q_motor, t, dir),
+                    tau: *t,
+                });
+            }
+            Torques::Gravity(load) => {
+                check_load(load)?;
+                load
+            }
+        };
         let mut q = *q_motor;
         for _ in 0..MAX_FIXED_POINT {
             let tau = self.static_torques(&q, load);
-            let next = self.link_from_motor_dir(q_motor, &tau, dir);
+            let next = self.link_angles_dir(q_motor, &tau, dir);
             let step = (0..6).map(|j| (next[j] - q[j]).abs()).fold(0.0, f64::max);
             q = next;
             if step < 1e-13 {
-                return Ok((q, tau));
+                return Ok(Compensation {
+                    q_motor: *q_motor,
+                    q_link: q,
+                    tau: self.static_torques(&q, load),
+                });
             }
         }
         Err(ModelError::Invalid {
@@ -230,6 +237,41 @@ impl Model {
             reason: format!(
                 "link angles did not converge in {MAX_FIXED_POINT} iterations: the joints are too compliant for this load"
             ),
+        })
+    }
+}
+
+/// Where the joint torques of a compensation come from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Torques<'a> {
+    /// Known torques, N·m (e.g. motor currents × torque constants), held fixed.
+    Given(&'a [f64; 6]),
+    /// The model's gravity plus `load` at the tool, evaluated at the link configuration.
+    Gravity(&'a ExternalLoad),
+}
+
+/// One point of the compensation relation: motor (resolver) angles, the link angles they
+/// put the link at, and the joint torques in force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Compensation {
+    /// Motor-side (resolver) angles, rad.
+    pub q_motor: [f64; 6],
+    /// Link-side angles, rad.
+    pub q_link: [f64; 6],
+    /// Joint torques, N·m.
+    pub tau: [f64; 6],
+}
+
+/// No approach direction: every joint's backlash centred.
+pub const NO_DIRECTION: [f64; 6] = [0.0; 6];
+
+fn check_load(load: &ExternalLoad) -> Result<(), ModelError> {
+    if load.force.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(ModelError::Invalid {
+            key: "load".into(),
+            reason: "force must be finite (N)".into(),
         })
     }
 }

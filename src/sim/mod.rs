@@ -250,7 +250,8 @@ impl TrueRobot {
         }
         let load = ExternalLoad::hung(load_n, &m.gravity());
         let dir = cond.direction.map(f64::from);
-        let (q_link, tau) = m.link_from_motor_static_dir(&motor, &load, &dir)?;
+        let c = m.link_from_motor(&motor, crate::model::Torques::Gravity(&load), &dir)?;
+        let (q_link, tau) = (c.q_link, c.tau);
         let tau_meas: [f64; 6] = std::array::from_fn(|j| {
             tau[j] * (1.0 + self.noise.torque_rel * gauss(rng))
                 + self.noise.torque_abs_nm * gauss(rng)

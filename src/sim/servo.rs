@@ -172,8 +172,13 @@ impl ServoSim {
     pub fn link_state(&self) -> ([f64; 6], [f64; 6]) {
         let m = &self.truth.model;
         let load = ExternalLoad::hung(self.load_n, &m.gravity());
-        m.link_from_motor_static_dir(&self.motor, &load, &self.dir)
-            .unwrap_or((self.motor, [0.0; 6]))
+        m.link_from_motor(
+            &self.motor,
+            crate::model::Torques::Gravity(&load),
+            &self.dir,
+        )
+        .map(|c| (c.q_link, c.tau))
+        .unwrap_or((self.motor, [0.0; 6]))
     }
 
     /// **Ground truth** (the instrument): the tool's pose in the instrument frame, with the

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use pa10::model::{ExternalLoad, Model, frame_from_pose, pose_parts};
+use pa10::model::{ExternalLoad, Model, NO_DIRECTION, Torques, frame_from_pose, pose_parts};
 
 /// Where the model comes from.
 #[derive(Debug, Args)]
@@ -101,9 +101,9 @@ pub fn fk(a: &FkArgs) -> Result<()> {
     }
     let q_link = if a.resolver {
         let load = ExternalLoad::hung(a.load_n, &m.gravity());
-        m.link_from_motor_static(&q, &load)
+        m.link_from_motor(&q, Torques::Gravity(&load), &NO_DIRECTION)
             .context("deflecting the links")?
-            .0
+            .q_link
     } else {
         q
     };
