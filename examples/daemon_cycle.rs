@@ -36,22 +36,20 @@ fn main() {
             .expect("config")
             .validate(&base)
             .expect("valid");
-        let d = Daemon::start(&cfg).expect("daemon");
+        let arm = pa10::sim::rig::SimulatedArm::from_config(&cfg).expect("simulated arm");
+        let d = Daemon::start(&cfg, arm.host()).expect("daemon");
         let a = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
         let b = [0.3, 0.6, 1.3, 0.4, 0.8, 0.5];
         let end = std::time::Instant::now() + Duration::from_secs_f64(secs);
         let mut k = 0;
         while std::time::Instant::now() < end {
             let q = if k % 2 == 0 { b } else { a };
-            let r = handle(
-                &d.shared,
-                &json!({"cmd": "move_joints", "q": q}).to_string(),
-            );
+            let r = handle(&d.core, &json!({"cmd": "move_joints", "q": q}).to_string());
             let dur = r["duration_s"].as_f64().unwrap_or(0.5);
             std::thread::sleep(Duration::from_secs_f64(dur + 0.1));
             k += 1;
         }
-        let st: Value = handle(&d.shared, r#"{"cmd":"status"}"#)["status"].clone();
+        let st: Value = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
         let c = &st["cycle"];
         let f = |v: &Value| {
             format!(

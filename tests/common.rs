@@ -100,12 +100,19 @@ pub fn calibrated_and_nominal(seed: u64) -> (pa10::sim::experiment::Campaign, Mo
     (camp, calibrated, nominal)
 }
 
-/// The daemon tests run in real time (a control thread and a simulator thread each): one at
-/// a time, and never beside the CPU-heavy tests (the independent generator's campaigns), so
-/// that two-core CI machines do not starve their cycles.
-static REALTIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+/// The two tests that run in real time (the `pa10d` binary, the demo: a control thread and a
+/// simulator thread each) hold this exclusively: one at a time, and never beside the tests
+/// that keep a core busy for seconds (the simulated-time daemon tests, the independent
+/// generator's campaigns), which hold it shared, so that two-core CI machines do not starve
+/// the real-time cycles.
+static REALTIME: std::sync::RwLock<()> = std::sync::RwLock::new(());
 
-/// Holds the real-time lock (see [`REALTIME`]) until dropped.
-pub fn realtime_lock() -> std::sync::MutexGuard<'static, ()> {
-    REALTIME.lock().unwrap_or_else(|p| p.into_inner())
+/// Holds the real-time lock exclusively (see [`REALTIME`]) until dropped.
+pub fn realtime_lock() -> std::sync::RwLockWriteGuard<'static, ()> {
+    REALTIME.write().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Holds the real-time lock shared (see [`REALTIME`]) until dropped: for CPU-heavy tests.
+pub fn busy_lock() -> std::sync::RwLockReadGuard<'static, ()> {
+    REALTIME.read().unwrap_or_else(|p| p.into_inner())
 }

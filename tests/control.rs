@@ -223,7 +223,12 @@ fn stale_feedback_faults_and_only_reset_clears_it() {
         &AMAX,
     )
     .unwrap();
-    assert!(ctl.start_move(mv.clone(), t).unwrap_err().contains("reset"));
+    assert!(
+        ctl.start_move(mv.clone(), t)
+            .unwrap_err()
+            .to_string()
+            .contains("reset")
+    );
     lp.t = t;
     lp.run(&mut ctl, 0.05);
     assert!(matches!(ctl.activity(), Activity::Faulted(_)));

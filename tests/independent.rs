@@ -69,7 +69,7 @@ fn within(est: f64, truth: f64, tol: f64) -> bool {
 /// same structure and validates within 1.15× of the generator's own floor.
 #[test]
 fn noise_is_measured_and_calibration_reaches_the_floor_on_every_family() {
-    let _cpu = crate::common::realtime_lock();
+    let _cpu = crate::common::busy_lock();
     for fam in families() {
         let set = generate(&Spec::paper(11, fam));
         let (cal, val) = load(&set, fam.name);
@@ -149,7 +149,7 @@ fn validation_mean(model: &Model, val: &Dataset) -> f64 {
 /// still works.
 #[test]
 fn sets_without_repeats_calibrate_on_a_stated_assumption() {
-    let _cpu = crate::common::realtime_lock();
+    let _cpu = crate::common::busy_lock();
     let fam = families()[0];
     let set = generate(&Spec {
         repeats: 1,
@@ -190,7 +190,7 @@ fn discovered(set: &indep::Set, start: &Model, tag: &str) -> Discovery {
 /// On clean sets of every family, discovery from the calibrated model names nothing.
 #[test]
 fn discovery_names_nothing_on_clean_independent_sets() {
-    let _cpu = crate::common::realtime_lock();
+    let _cpu = crate::common::busy_lock();
     for fam in families() {
         let set = generate(&Spec::paper(13, fam));
         let (cal, _) = load(&set, "clean-cal");
@@ -215,7 +215,7 @@ fn discovery_names_nothing_on_clean_independent_sets() {
 /// A J4 spring the paper's model lacks is named on J4, on every family.
 #[test]
 fn discovery_names_a_hidden_j4_spring_on_every_family() {
-    let _cpu = crate::common::realtime_lock();
+    let _cpu = crate::common::busy_lock();
     for fam in families() {
         let set = generate(&Spec {
             hidden: Hidden::SpringJ4(4000.0),
@@ -245,7 +245,7 @@ fn discovery_names_a_hidden_j4_spring_on_every_family() {
 /// by the generic dictionary — and the gap ends within 1.25× the floor.
 #[test]
 fn an_out_of_library_effect_is_localised_on_its_joint() {
-    let _cpu = crate::common::realtime_lock();
+    let _cpu = crate::common::busy_lock();
     for fam in families() {
         let set = generate(&Spec {
             hidden: Hidden::Poly(0, 3, 3e-4),
@@ -274,7 +274,7 @@ fn an_out_of_library_effect_is_localised_on_its_joint() {
 /// nothing on the other joints), and closes the gap.
 #[test]
 fn discovery_from_the_nominal_model_finds_the_papers_springs() {
-    let _cpu = crate::common::realtime_lock();
+    let _cpu = crate::common::busy_lock();
     let set = generate(&Spec::paper(16, families()[0]));
     let (cal, _) = load(&set, "nominal");
     let d = discover(&Model::nominal(), &cal, None, &DiscoverOptions::default()).unwrap();

@@ -291,7 +291,7 @@ fn static_torques_are_the_gradient_of_potential_energy() {
 
 #[test]
 fn horizontal_arm_needs_about_83_newton_metres_at_the_shoulder() {
-    // pa10-facts.md §2.3: τ2 ≈ 83 N·m unloaded, ≈ 181–184 N·m with 10 kg at the flange.
+    // the AIST masses ([R3] in docs/references.md): τ2 ≈ 83 N·m unloaded, ≈ 181–184 N·m with 10 kg at the flange.
     let m = Model::nominal();
     let q = [0.0, FRAC_PI_2, 0.0, 0.0, 0.0, 0.0];
     let t = m.static_torques(&q, &ExternalLoad::NONE);
@@ -357,7 +357,7 @@ fn compensation_rejects_non_finite_input() {
 
 #[test]
 fn loaded_deflection_matches_the_facts_sheet() {
-    // pa10-facts.md §4: arm horizontal, seed stiffness: J2 deflects 4.08 mrad unloaded.
+    // the seed paper ([P]): arm horizontal, seed stiffness: J2 deflects 4.08 mrad unloaded.
     let mut d = Model::nominal().data().clone();
     d.stiffness[1] = Some(pa10::model::Stiffness {
         klin: 1.98e4,

@@ -14,6 +14,7 @@ use anyhow::{Context, Result};
 use clap::Parser;
 use pa10::daemon::config::{Backend, Config};
 use pa10::daemon::runtime::{Daemon, lock};
+use pa10::sim::rig::SimulatedArm;
 use sd_notify::NotifyState;
 
 /// pa10d: compensating control daemon for the Mitsubishi PA10-6CE.
@@ -98,8 +99,27 @@ fn run(path: &Path) -> Result<()> {
         .with_writer(std::io::stderr)
         .init();
     tracing::info!(config = %path.display(), rate_hz = loaded.config.control.rate_hz, "starting");
-    let mut daemon = Daemon::start(&loaded).context("starting the control loop")?;
-    let shared = daemon.shared.clone();
+    // The simulated arm (virtual backend) lives as long as the daemon runs on it.
+    let (mut daemon, _arm) = match loaded.config.bus.backend {
+        Backend::Virtual => {
+            let arm = SimulatedArm::from_config(&loaded).context("the simulated arm")?;
+            let d = Daemon::start(&loaded, arm.host()).context("starting the control loop")?;
+            (d, Some(arm))
+        }
+        Backend::Socketcan => {
+            #[cfg(target_os = "linux")]
+            {
+                let iface = loaded.config.bus.interface.clone().unwrap_or_default();
+                let bus = pa10::can::socketcan_bus::SocketCanBus::open(&iface)
+                    .with_context(|| format!("opening {iface}"))?;
+                let d = Daemon::start(&loaded, bus).context("starting the control loop")?;
+                (d, None)
+            }
+            #[cfg(not(target_os = "linux"))]
+            anyhow::bail!("SocketCAN needs Linux")
+        }
+    };
+    let shared = daemon.core.clone();
     tracing::info!("servo controller in control mode");
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
@@ -121,11 +141,9 @@ fn run(path: &Path) -> Result<()> {
         loop {
             tokio::select! {
                 _ = tick.tick() => {
-                    let s = lock(&shared);
-                    let st = s.status();
+                    let st = lock(&shared).status();
                     let progressed = st.cycle.cycles > last_cycles;
                     last_cycles = st.cycle.cycles;
-                    drop(s);
                     if wd.is_some() && progressed {
                         let _ = sd_notify::notify(&[NotifyState::Watchdog]);
                     }

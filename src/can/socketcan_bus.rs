@@ -5,14 +5,19 @@
 
 use std::time::Duration;
 
-use socketcan::{CanFilter, EmbeddedFrame, SocketOptions, StandardId};
+use socketcan::{CanFilter, EmbeddedFrame, Socket, SocketOptions, StandardId};
+use tokio::io::Interest;
+use tokio::io::unix::AsyncFd;
 
 use super::bus::{BusError, BusEvent, CanBus, Filter};
 use super::protocol::Frame;
 
-/// A SocketCAN interface.
+/// A SocketCAN interface. Opening it does not need an async runtime: the socket registers
+/// with the reactor of the runtime that first sends or receives on it (the daemon's control
+/// thread), so it can be opened by the caller and handed over.
 pub struct SocketCanBus {
-    sock: socketcan::tokio::CanSocket,
+    sock: Option<socketcan::CanSocket>,
+    fd: Option<AsyncFd<socketcan::CanSocket>>,
 }
 
 fn io(e: impl std::fmt::Display) -> BusError {
@@ -20,12 +25,33 @@ fn io(e: impl std::fmt::Display) -> BusError {
 }
 
 impl SocketCanBus {
-    /// Opens `iface` (e.g. `can0`, `vcan0`) and asks for every error frame.
+    /// Opens `iface` (e.g. `can0`, `vcan0`), non-blocking, and asks for every error frame.
     pub fn open(iface: &str) -> Result<Self, BusError> {
-        let sock = socketcan::tokio::CanSocket::open(iface)
-            .map_err(|e| BusError::Io(format!("{iface}: {e}")))?;
+        let sock =
+            socketcan::CanSocket::open(iface).map_err(|e| BusError::Io(format!("{iface}: {e}")))?;
+        sock.set_nonblocking(true).map_err(io)?;
         sock.set_error_filter_accept_all().map_err(io)?;
-        Ok(Self { sock })
+        Ok(Self {
+            sock: Some(sock),
+            fd: None,
+        })
+    }
+
+    /// The socket registered with the current runtime's reactor (on first use).
+    fn fd(&mut self) -> Result<&AsyncFd<socketcan::CanSocket>, BusError> {
+        if self.fd.is_none() {
+            let sock = self.sock.take().ok_or(BusError::Closed)?;
+            // SAFETY: `socketcan::CanSocket` owns its descriptor (an `OwnedFd`), which stays
+            // open and the same until the socket is dropped, and the `AsyncFd` owns the socket.
+            #[allow(unsafe_code)]
+            let fd = unsafe { AsyncFd::register(sock) }.map_err(|e| io(e.to_string()))?;
+            self.fd = Some(fd);
+        }
+        self.fd.as_ref().ok_or(BusError::Closed)
+    }
+
+    fn socket(&self) -> Option<&socketcan::CanSocket> {
+        self.fd.as_ref().map(|f| f.get_ref()).or(self.sock.as_ref())
     }
 }
 
@@ -34,12 +60,20 @@ impl CanBus for SocketCanBus {
         let id = StandardId::new(frame.id()).ok_or_else(|| io("identifier beyond 11 bits"))?;
         let f =
             socketcan::CanFrame::new(id, frame.data()).ok_or_else(|| io("frame construction"))?;
-        self.sock.write_frame(f).await.map_err(io)
+        self.fd()?
+            .async_io(Interest::WRITABLE, |s| s.write_frame(&f))
+            .await
+            .map_err(io)
     }
 
+    /// Waits for the next event until one absolute deadline, `timeout` from the call: frames
+    /// the loop skips (remote frames, extended identifiers) do not restart the wait.
     async fn recv(&mut self, timeout: Duration) -> Result<BusEvent, BusError> {
+        let deadline = tokio::time::Instant::now() + timeout;
+        let fd = self.fd()?;
         loop {
-            let f = match tokio::time::timeout(timeout, self.sock.read_frame()).await {
+            let read = fd.async_io(Interest::READABLE, |s| s.read_frame());
+            let f = match tokio::time::timeout_at(deadline, read).await {
                 Err(_) => return Err(BusError::Timeout),
                 Ok(r) => r.map_err(io)?,
             };
@@ -74,10 +108,11 @@ impl CanBus for SocketCanBus {
             .iter()
             .map(|f| CanFilter::new(f.id as u32, f.mask as u32))
             .collect();
+        let sock = self.socket().ok_or(BusError::Closed)?;
         if f.is_empty() {
-            self.sock.set_filter_accept_all().map_err(io)
+            sock.set_filter_accept_all().map_err(io)
         } else {
-            self.sock.set_filters(&f).map_err(io)
+            sock.set_filters(&f).map_err(io)
         }
     }
 }

@@ -83,6 +83,9 @@ pub struct VirtualEndpoint {
     shared: Arc<Mutex<Shared>>,
     rx: mpsc::UnboundedReceiver<Delivery>,
     filters: Vec<Filter>,
+    /// A frame taken from the channel whose delivery time had not come yet: kept, so that a
+    /// receive that times out (or is dropped) while it waits does not lose it.
+    held: Option<(Frame, Instant)>,
 }
 
 impl VirtualBus {
@@ -114,6 +117,7 @@ impl VirtualBus {
             shared: self.shared.clone(),
             rx,
             filters: Vec::new(),
+            held: None,
         }
     }
 
@@ -182,21 +186,26 @@ impl CanBus for VirtualEndpoint {
     async fn recv(&mut self, timeout: Duration) -> Result<BusEvent, BusError> {
         let deadline = Instant::now() + timeout;
         loop {
-            let d = match tokio::time::timeout_at(deadline, self.rx.recv()).await {
-                Err(_) => return Err(BusError::Timeout),
-                Ok(None) => return Err(BusError::Closed),
-                Ok(Some(d)) => d,
+            let (f, at) = match self.held {
+                Some(held) => held,
+                None => match tokio::time::timeout_at(deadline, self.rx.recv()).await {
+                    Err(_) => return Err(BusError::Timeout),
+                    Ok(None) => return Err(BusError::Closed),
+                    Ok(Some(Delivery::BusOff)) => return Ok(BusEvent::BusOff),
+                    Ok(Some(Delivery::Frame(f, at))) => (f, at),
+                },
             };
-            match d {
-                Delivery::BusOff => return Ok(BusEvent::BusOff),
-                Delivery::Frame(f, at) => {
-                    if at > Instant::now() {
-                        tokio::time::sleep_until(at).await;
-                    }
-                    if passes(&self.filters, f.id()) {
-                        return Ok(BusEvent::Frame(f));
-                    }
+            if at > Instant::now() {
+                self.held = Some((f, at));
+                if at > deadline {
+                    tokio::time::sleep_until(deadline).await;
+                    return Err(BusError::Timeout);
                 }
+                tokio::time::sleep_until(at).await;
+            }
+            self.held = None;
+            if passes(&self.filters, f.id()) {
+                return Ok(BusEvent::Frame(f));
             }
         }
     }

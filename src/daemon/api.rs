@@ -1,6 +1,6 @@
 //! The client API: newline-delimited JSON over a Unix socket (`docs/api.md`).
 //!
-//! [`handle`] is the pure request handler (JSON in, JSON out, against the shared state);
+//! [`handle`] is the request handler (JSON in, JSON out, against the daemon's [`Core`]);
 //! [`serve`] is the thin tokio shell that accepts connections and moves lines. Every request
 //! is validated and a refused one leaves the robot as it was.
 
@@ -13,8 +13,10 @@ use serde_json::{Value, json};
 use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::UnixListener;
 
-use super::motion::Move;
-use super::runtime::{Shared, lock};
+use super::control::CommandError;
+use super::core::{Command, Core, PlanBasis};
+use super::motion::{Move, MoveError};
+use super::runtime::lock;
 use crate::model::{Model, frame_from_pose};
 
 /// A client request.
@@ -62,56 +64,54 @@ fn err(msg: impl std::fmt::Display) -> Value {
     json!({ "ok": false, "error": msg.to_string() })
 }
 
-/// Starts a planned move, or says why not.
-fn start(
-    ctl: &mut super::control::Controller,
-    planned: Result<Move, super::motion::MoveError>,
-    now: f64,
-) -> Value {
-    match planned {
-        Ok(mv) => {
-            let d = mv.duration();
-            match ctl.start_move(mv, now) {
-                Ok(()) => json!({ "ok": true, "duration_s": d }),
-                Err(e) => err(e),
-            }
-        }
-        Err(e) => err(e),
-    }
+fn answer(r: Result<Value, CommandError>) -> Value {
+    r.unwrap_or_else(err)
 }
 
-/// Handles one request line; `Subscribe` is answered by [`serve`] and rejected here.
-pub fn handle(shared: &Mutex<Shared>, line: &str) -> Value {
+/// Plans a move outside the lock (≈ 1 ms for a Cartesian one) from a basis taken under it,
+/// then hands it over; refused if the setpoint or the model changed in between.
+fn plan_and_start(
+    core: &Mutex<Core>,
+    plan: impl FnOnce(&PlanBasis) -> Result<Move, MoveError>,
+) -> Result<Value, CommandError> {
+    let basis = lock(core).plan_basis()?;
+    let mv = plan(&basis)?;
+    let d = mv.duration();
+    lock(core).submit(Command::Start {
+        mv: Box::new(mv),
+        basis,
+    })?;
+    Ok(json!({ "ok": true, "duration_s": d }))
+}
+
+fn submit(core: &Mutex<Core>, cmd: Command) -> Value {
+    answer(lock(core).submit(cmd).map(|()| json!({ "ok": true })))
+}
+
+/// Handles one request line; `Subscribe` is answered by [`serve`] (here: one status).
+///
+/// The lock on the core is held only to read a snapshot or to apply a command: planning a
+/// move and parsing a model file happen outside it, so the 2 ms cycle never waits for them.
+pub fn handle(core: &Mutex<Core>, line: &str) -> Value {
     let req: Request = match serde_json::from_str(line) {
         Ok(r) => r,
         Err(e) => return err(format!("bad request: {e}")),
     };
-    let mut s = lock(shared);
-    let now = s.now_s;
-    let link_fault = s.fault.clone();
-    let Some(ctl) = s.ctl.as_mut() else {
-        return err(format!(
-            "not ready: {}",
-            link_fault.unwrap_or_else(|| "starting".into())
-        ));
-    };
-    let limits_v = ctl.limits();
     match req {
-        Request::Status | Request::Subscribe { .. } => json!({ "ok": true, "status": s.status() }),
-        Request::MoveJoints { q } => {
-            if let Some(f) = link_fault {
-                return err(format!("faulted ({f}); send reset first"));
+        Request::Status | Request::Subscribe { .. } => {
+            let c = lock(core);
+            if !c.is_ready() && c.startup_failure().is_none() {
+                return err(CommandError::NotReady("starting".into()));
             }
-            let planned = Move::joints(ctl.model(), ctl.setpoint().q, q, &limits_v.0, &limits_v.1);
-            start(ctl, planned, now)
+            json!({ "ok": true, "status": c.status() })
         }
+        Request::MoveJoints { q } => answer(plan_and_start(core, |b| {
+            Move::joints(&b.model, b.from, q, &b.speed, &b.acceleration)
+        })),
         Request::MovePose {
             position,
             quaternion,
         } => {
-            if let Some(f) = link_fault {
-                return err(format!("faulted ({f}); send reset first"));
-            }
             let n = quaternion.iter().map(|v| v * v).sum::<f64>().sqrt();
             if !position.iter().chain(&quaternion).all(|v| v.is_finite()) || (n - 1.0).abs() > 1e-3
             {
@@ -120,37 +120,16 @@ pub fn handle(shared: &Mutex<Shared>, line: &str) -> Value {
                 ));
             }
             let target = frame_from_pose(position, quaternion);
-            let planned = Move::cartesian(
-                ctl.model(),
-                ctl.setpoint().q,
-                target,
-                &limits_v.0,
-                &limits_v.1,
-            );
-            start(ctl, planned, now)
+            answer(plan_and_start(core, |b| {
+                Move::cartesian(&b.model, b.from, target, &b.speed, &b.acceleration)
+            }))
         }
-        Request::Stop => {
-            ctl.stop();
-            json!({ "ok": true })
-        }
-        Request::Estop => {
-            s.estop = true;
-            json!({ "ok": true })
-        }
-        Request::Reset => {
-            ctl.reset();
-            s.restart = true;
-            json!({ "ok": true })
-        }
-        Request::SetPayload { newtons } => match ctl.set_payload(newtons) {
-            Ok(()) => json!({ "ok": true }),
-            Err(e) => err(e),
-        },
+        Request::Stop => submit(core, Command::Stop),
+        Request::Estop => submit(core, Command::Estop),
+        Request::Reset => submit(core, Command::Reset),
+        Request::SetPayload { newtons } => submit(core, Command::SetPayload(newtons)),
         Request::LoadModel { path } => match Model::load(&path) {
-            Ok(m) => match ctl.load_model(m) {
-                Ok(()) => json!({ "ok": true }),
-                Err(e) => err(e),
-            },
+            Ok(m) => submit(core, Command::LoadModel(Arc::new(m))),
             Err(e) => err(e),
         },
     }
@@ -160,7 +139,7 @@ pub fn handle(shared: &Mutex<Shared>, line: &str) -> Value {
 pub async fn serve(
     path: &Path,
     mode: u32,
-    shared: Arc<Mutex<Shared>>,
+    core: Arc<Mutex<Core>>,
     mut stop: tokio::sync::watch::Receiver<bool>,
 ) -> std::io::Result<()> {
     let _ = std::fs::remove_file(path);
@@ -175,7 +154,7 @@ pub async fn serve(
             c = listener.accept() => c?,
             _ = stop.changed() => break,
         };
-        let shared = shared.clone();
+        let core = core.clone();
         tokio::spawn(async move {
             let (r, mut w) = conn.into_split();
             let mut lines = BufReader::new(r).lines();
@@ -193,7 +172,7 @@ pub async fn serve(
                     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
                     loop {
                         tick.tick().await;
-                        let st = json!({ "ok": true, "status": lock(&shared).status() });
+                        let st = json!({ "ok": true, "status": lock(&core).status() });
                         if w.write_all(format!("{st}\n").as_bytes()).await.is_err() {
                             return;
                         }
@@ -205,7 +184,7 @@ pub async fn serve(
                     .unwrap_or_default();
                 let span = tracing::info_span!("request", cmd = %cmd);
                 let resp = span.in_scope(|| {
-                    let r = handle(&shared, &line);
+                    let r = handle(&core, &line);
                     if r["ok"] == true {
                         // status is polled (often at 100 Hz): keep it out of the journal
                         if cmd == "status" {

@@ -23,6 +23,9 @@
 
 use super::config::TorqueSource;
 use super::motion::{Move, MoveError, Setpoint};
+use std::sync::Arc;
+
+use super::link::LinkError;
 use crate::model::{ExternalLoad, Model, NO_DIRECTION, Torques};
 
 /// The joint state of one cycle, as decoded from the six FEEDBACK frames.
@@ -74,6 +77,45 @@ pub enum Fault {
     /// A setpoint could not be computed (the model refused the path mid-move).
     #[error("setpoint: {0}")]
     Setpoint(MoveError),
+    /// The servo link failed (bus, silent controller, refused request).
+    #[error("servo link: {0}")]
+    Link(LinkError),
+    /// A client asked for an emergency stop.
+    #[error("emergency stop requested by a client")]
+    EmergencyStop,
+}
+
+/// Why a command was refused; a refused command changes nothing.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum CommandError {
+    /// The daemon is faulted.
+    #[error("faulted ({0}); send reset first")]
+    Faulted(Fault),
+    /// A move or a controlled stop is in progress.
+    #[error("a move is in progress; stop it first")]
+    Busy,
+    /// The servo controller is not (yet, or again) in control mode.
+    #[error("not ready: {0}")]
+    NotReady(String),
+    /// The move was planned from a setpoint or model that has changed since.
+    #[error("the setpoint or the model changed while the move was planned; send it again")]
+    Stale,
+    /// The move cannot be planned.
+    #[error("{0}")]
+    Plan(#[from] MoveError),
+    /// A payload outside 0…500 N.
+    #[error("payload must be within 0…500 N, got {0}")]
+    Payload(f64),
+    /// The model cannot change during a move.
+    #[error("cannot change the model during a move")]
+    ModelDuringMove,
+    /// A model file that does not load.
+    #[error("model: {0}")]
+    Model(String),
+    /// The daemon is shutting down.
+    #[error("shutting down")]
+    ShuttingDown,
 }
 
 /// What the loop is doing.
@@ -125,7 +167,7 @@ pub struct LoopParams {
 /// The sans-IO controller.
 #[derive(Debug, Clone)]
 pub struct Controller {
-    model: Model,
+    model: Arc<Model>,
     p: LoopParams,
     setpoint: Setpoint,
     activity: Activity,
@@ -138,7 +180,8 @@ pub struct Controller {
 
 impl Controller {
     /// A controller holding the arm where `first` says it is.
-    pub fn new(model: Model, p: LoopParams, first: &JointState) -> Self {
+    pub fn new(model: impl Into<Arc<Model>>, p: LoopParams, first: &JointState) -> Self {
+        let model = model.into();
         let load = ExternalLoad::hung(p.payload_n, &model.gravity());
         let q_link = model
             .link_from_motor(&first.q_motor, Torques::Gravity(&load), &NO_DIRECTION)
@@ -171,17 +214,28 @@ impl Controller {
     pub fn model(&self) -> &Model {
         &self.model
     }
+    /// The model in use, shared (planning takes it outside the control lock).
+    pub fn model_arc(&self) -> &Arc<Model> {
+        &self.model
+    }
+
+    /// Whether a new move may start now: holding, not faulted.
+    pub fn ready_for_move(&self) -> Result<(), CommandError> {
+        match &self.activity {
+            Activity::Faulted(f) => Err(CommandError::Faulted(f.clone())),
+            Activity::Moving { .. } | Activity::Stopping { .. } => Err(CommandError::Busy),
+            Activity::Holding => Ok(()),
+        }
+    }
 
     /// Starts `mv` at `now_s`; refused while faulted or already moving.
-    pub fn start_move(&mut self, mv: Move, now_s: f64) -> Result<(), String> {
+    pub fn start_move(&mut self, mv: impl Into<Box<Move>>, now_s: f64) -> Result<(), CommandError> {
         match &self.activity {
-            Activity::Faulted(f) => Err(format!("faulted ({f}); send reset first")),
-            Activity::Moving { .. } | Activity::Stopping { .. } => {
-                Err("a move is in progress; stop it first".into())
-            }
+            Activity::Faulted(f) => Err(CommandError::Faulted(f.clone())),
+            Activity::Moving { .. } | Activity::Stopping { .. } => Err(CommandError::Busy),
             Activity::Holding => {
                 self.activity = Activity::Moving {
-                    mv: Box::new(mv),
+                    mv: mv.into(),
                     start_s: now_s,
                 };
                 Ok(())
@@ -190,21 +244,21 @@ impl Controller {
     }
 
     /// Replaces the model between moves (hot reload); refused while moving.
-    pub fn load_model(&mut self, model: Model) -> Result<(), String> {
+    pub fn load_model(&mut self, model: impl Into<Arc<Model>>) -> Result<(), CommandError> {
         if matches!(
             self.activity,
             Activity::Moving { .. } | Activity::Stopping { .. }
         ) {
-            return Err("cannot change the model during a move".into());
+            return Err(CommandError::ModelDuringMove);
         }
-        self.model = model;
+        self.model = model.into();
         Ok(())
     }
 
     /// Sets the payload hung at the tool, N.
-    pub fn set_payload(&mut self, newtons: f64) -> Result<(), String> {
+    pub fn set_payload(&mut self, newtons: f64) -> Result<(), CommandError> {
         if !(newtons.is_finite() && (0.0..=500.0).contains(&newtons)) {
-            return Err(format!("payload must be within 0…500 N, got {newtons}"));
+            return Err(CommandError::Payload(newtons));
         }
         self.p.payload_n = newtons;
         Ok(())
@@ -367,6 +421,14 @@ impl Controller {
                 (self.setpoint.qd[j] + self.p.gain * e).clamp(-self.p.speed[j], self.p.speed[j]);
         }
         out
+    }
+
+    /// Stops the arm for a fault found outside the cycle (the link, a client's emergency
+    /// stop): zero speed until [`Controller::reset`]. An earlier fault is kept.
+    pub fn halt(&mut self, f: Fault) {
+        if !matches!(self.activity, Activity::Faulted(_)) {
+            self.activity = Activity::Faulted(f);
+        }
     }
 
     fn fault(&mut self, f: Fault) -> [f64; 6] {

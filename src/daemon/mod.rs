@@ -1,10 +1,17 @@
-//! The `pa10d` control daemon's library side: configuration (and, as the `[daemon]` issue
-//! proceeds, the control loop, motion, the client API and the safety supervisor).
+//! The `pa10d` control daemon's library side.
+//!
+//! Sans IO, plain functions and state machines on plain data: [`link`] (the host side of the
+//! servo protocol session), [`control`] (one control cycle), [`motion`] (move planning),
+//! [`core`] (link + cycle + client commands + status, one state machine) and [`stats`].
+//! At the edges: [`runtime`] (the real-time control thread on a real bus), [`api`] (the
+//! client socket), [`config`] and [`realtime`] (scheduling and memory locking).
 
 pub mod api;
 pub mod config;
 pub mod control;
+pub mod core;
 pub mod link;
 pub mod motion;
 pub mod realtime;
 pub mod runtime;
+pub mod stats;

@@ -43,7 +43,7 @@ impl Stiffness {
     /// let k = Stiffness { klin: 1.98e4, kcub: 3.35e7 }; // the paper's joint 2
     /// let d = k.deflection(83.0);
     /// assert!((k.torque(d) - 83.0).abs() < 1e-11);
-    /// assert!((d - 4.08e-3).abs() < 1e-5); // pa10-facts.md §4: 4.08 mrad
+    /// assert!((d - 4.08e-3).abs() < 1e-5); // the seed paper's arm-horizontal example (docs/references.md [P]): 4.08 mrad
     /// ```
     #[inline]
     pub fn deflection(&self, tau: f64) -> f64 {

@@ -11,7 +11,7 @@
 use serde::{Deserialize, Serialize};
 
 /// Default wave-generator revolutions per output revolution (the PA10's 1:50 drives; the
-/// gear ratios are not published, see `pa10-facts.md` §2.4).
+/// gear ratios are not published, see R4 in `docs/references.md`).
 pub const DEFAULT_GEAR_RATIO: f64 = 50.0;
 
 fn default_gear_ratio() -> f64 {

@@ -6,6 +6,7 @@
 //! [`experiment`] module builds the seed paper's measurement campaign on top of it.
 
 pub mod experiment;
+pub mod rig;
 pub mod servo;
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};

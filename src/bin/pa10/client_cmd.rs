@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use pa10::daemon::runtime::Shared;
+use pa10::daemon::core::Core;
 use serde_json::{Value, json};
 
 /// Where the daemon listens.
@@ -90,7 +90,7 @@ impl Api for Socket {
 }
 
 /// A daemon running in this process (the demo): the same request handler as the socket's.
-pub struct InProcess(pub Arc<Mutex<Shared>>);
+pub struct InProcess(pub Arc<Mutex<Core>>);
 
 impl Api for InProcess {
     fn call(&mut self, req: Value) -> Result<Value> {

@@ -16,6 +16,7 @@ use pa10::daemon::config::Config;
 use pa10::daemon::runtime::Daemon;
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, pose, sidecar};
+use pa10::sim::rig::SimulatedArm;
 use pa10::sim::servo::{ServoSim, SharedServo};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
@@ -172,12 +173,10 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.set_message("starting pa10d on the simulated PA10");
-    let mut d = Daemon::start(&loaded)?;
-    let sim = d
-        .sim
-        .clone()
-        .context("the virtual backend runs a simulator")?;
-    let mut api = InProcess(d.shared.clone());
+    let arm = SimulatedArm::from_config(&loaded)?;
+    let mut d = Daemon::start(&loaded, arm.host())?;
+    let sim = arm.servo().clone();
+    let mut api = InProcess(d.core.clone());
     let mut rng = Pcg64::seed_from_u64(a.seed ^ 0xde70);
     let truth = lock(&sim)?.truth().clone();
     let cmm = |sim: &SharedServo, rng: &mut Pcg64| -> Result<Frame> {

@@ -1,0 +1,539 @@
+//! The daemon's core, sans IO: the servo link ([`Link`]), the control cycle
+//! ([`Controller`]), the commands clients send and the status they read, in one state machine
+//! that takes frames and times and gives frames back.
+//!
+//! [`Core::handle_frame`], [`Core::handle_timeout`], [`Core::poll_timeout`] and
+//! [`Core::poll_transmit`] are all the IO shell needs: the real-time control thread
+//! (`runtime`) moves frames between them and a [`CanBus`](crate::can::CanBus) and sleeps; the
+//! simulated-time harness (`sim::lockstep`) moves them to a simulated controller and advances
+//! a clock. Every client command enters through [`Core::submit`] as a typed [`Command`] and
+//! is refused with a typed [`CommandError`] that changes nothing. There is one fault: the
+//! controller's [`Activity::Faulted`] (link failures and emergency stops are put there too),
+//! or, before the first connection, the link's start-up failure.
+//!
+//! Slow work never happens here: a move is planned from a [`PlanBasis`] outside the lock the
+//! control thread shares with the API, and handed over with [`Command::Start`]; a model file
+//! is parsed outside it and handed over with [`Command::LoadModel`].
+
+use std::sync::Arc;
+
+use serde::Serialize;
+
+use super::config::Loaded;
+use super::control::{Activity, CommandError, Controller, Fault, JointState, LoopParams};
+use super::link::{Link, LinkConfig, LinkCounters, LinkError, LinkEvent};
+use super::motion::Move;
+use super::stats::{CycleStats, Histogram};
+use crate::can::bus::{BusError, BusEvent};
+use crate::can::protocol::{Frame, Request, ServoState};
+use crate::model::Model;
+
+/// What a move was planned from: the model, the link setpoint and the limits, taken under the
+/// lock, used outside it. A [`Command::Start`] is refused when the setpoint or the model has
+/// changed since.
+#[derive(Debug, Clone)]
+pub struct PlanBasis {
+    /// The model in use.
+    pub model: Arc<Model>,
+    /// The link-side setpoint the move starts from, rad.
+    pub from: [f64; 6],
+    /// Speed limits, rad/s.
+    pub speed: [f64; 6],
+    /// Acceleration limits, rad/s².
+    pub acceleration: [f64; 6],
+}
+
+/// A client's command.
+#[derive(Debug, Clone)]
+pub enum Command {
+    /// Start a move planned from `basis`.
+    Start {
+        /// The planned move.
+        mv: Box<Move>,
+        /// What it was planned from.
+        basis: PlanBasis,
+    },
+    /// Controlled stop.
+    Stop,
+    /// Immediate servo stop, brakes on; a fault until reset.
+    Estop,
+    /// Clear a fault; bring the controller back to control mode when it left it.
+    Reset,
+    /// The weight hung at the tool, N.
+    SetPayload(f64),
+    /// Replace the model between moves (parsed by the caller).
+    LoadModel(Arc<Model>),
+    /// Bring the arm to rest, stop the servo and close the link.
+    Shutdown,
+}
+
+/// What `status` reports.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Status {
+    /// starting, holding, moving, stopping, fault, closed.
+    pub state: String,
+    /// The fault, when there is one.
+    pub fault: Option<String>,
+    /// The servo controller's last reported state.
+    pub servo: Option<String>,
+    /// Link-side setpoint, rad.
+    pub setpoint: [f64; 6],
+    /// Resolver angles, rad.
+    pub q_motor: [f64; 6],
+    /// Motor currents, A (the last cycle's).
+    pub current: [f64; 6],
+    /// Tool position of the setpoint, m (base frame).
+    pub tool_position: [f64; 3],
+    /// Tool orientation of the setpoint, quaternion w, x, y, z.
+    pub tool_quaternion: [f64; 4],
+    /// Payload, N.
+    pub payload_n: f64,
+    /// Link counters.
+    pub link: LinkCounters,
+    /// Cycle statistics.
+    pub cycle: CycleStats,
+}
+
+/// How far the shutdown has come.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Exit {
+    Running,
+    /// Decelerating to rest before STOP.
+    Stopping,
+    /// STOP sent; closing on its answer.
+    Halting,
+}
+
+/// The sans-IO daemon (see the module documentation).
+#[derive(Debug)]
+pub struct Core {
+    link: Link,
+    model: Arc<Model>,
+    params: LoopParams,
+    ctl: Option<Controller>,
+    /// A start-up failure, before any controller exists.
+    failure: Option<LinkError>,
+    last: Option<JointState>,
+    stats: CycleStats,
+    jitter: Histogram,
+    compute: Histogram,
+    now_s: f64,
+    exit: Exit,
+    /// A STOP or ESTOP went out since the last connection.
+    stop_sent: bool,
+    /// The link is re-running its handshake after a reset.
+    restarting: bool,
+    /// Cycles started.
+    syncs: u64,
+}
+
+impl Core {
+    /// A core for `model` with loop parameters `params` and link timing `link`;
+    /// `bus_load` (0…1) is the configured rate's worst-case bus load, for `status`.
+    pub fn new(
+        model: impl Into<Arc<Model>>,
+        params: LoopParams,
+        link: LinkConfig,
+        bus_load: f64,
+    ) -> Self {
+        Self {
+            link: Link::new(link),
+            model: model.into(),
+            params,
+            ctl: None,
+            failure: None,
+            last: None,
+            stats: CycleStats {
+                bus_load_pct: bus_load * 100.0,
+                ..Default::default()
+            },
+            jitter: Histogram::default(),
+            compute: Histogram::default(),
+            now_s: 0.0,
+            exit: Exit::Running,
+            stop_sent: false,
+            restarting: false,
+            syncs: 0,
+        }
+    }
+
+    /// The core a validated configuration describes.
+    pub fn from_config(loaded: &Loaded) -> Self {
+        let c = &loaded.config;
+        let params = LoopParams {
+            period_s: 1.0 / c.control.rate_hz,
+            gain: c.control.position_gain,
+            torque_source: c.control.torque_source,
+            filter_hz: c.control.current_filter_hz,
+            torque_constants: c.torque_constants,
+            payload_n: c.payload_n,
+            speed: c.limits.speed,
+            acceleration: c.limits.acceleration,
+            following_error: c.limits.following_error,
+            feedback_timeout_s: c.limits.feedback_timeout_ms * 1e-3,
+        };
+        let wd = c.limits.feedback_timeout_ms.round().clamp(1.0, 255.0) as u8;
+        let link = LinkConfig::new(params.period_s, wd);
+        Self::new(loaded.model.clone(), params, link, loaded.bus_load)
+    }
+
+    /// Starts the session at `now` (s).
+    pub fn start(&mut self, now: f64) {
+        self.now_s = now;
+        self.link.connect(now);
+    }
+
+    /// Takes one frame received at `now` (s).
+    pub fn handle_frame(&mut self, frame: &Frame, now: f64) {
+        self.now_s = self.now_s.max(now);
+        let ev = self.link.handle(frame, now);
+        self.on(ev, now);
+    }
+
+    /// Takes a bus event other than a frame (or a bus error) at `now` (s).
+    pub fn handle_bus(&mut self, event: Result<BusEvent, BusError>, now: f64) {
+        self.now_s = self.now_s.max(now);
+        let error = match event {
+            Ok(BusEvent::Frame(f)) => return self.handle_frame(&f, now),
+            Ok(BusEvent::ErrorFrame { .. }) => {
+                self.link.count_error_frame();
+                return;
+            }
+            Err(BusError::Timeout) => return,
+            Ok(BusEvent::BusOff) | Err(BusError::BusOff) => LinkError::BusOff,
+            Err(e) => LinkError::Bus(e.to_string()),
+        };
+        let ev = self.link.bus_failed(error);
+        self.on(ev, now);
+    }
+
+    /// Acts on everything due at `now` (s).
+    pub fn handle_timeout(&mut self, now: f64) {
+        self.now_s = self.now_s.max(now);
+        // a bounded loop: each pass consumes one due deadline
+        for _ in 0..8 {
+            match self.link.poll_timeout() {
+                Some(t) if t <= now => {
+                    let ev = self.link.handle_timeout(now);
+                    if let Some(timing) = self.link.take_timing() {
+                        self.syncs += 1;
+                        self.jitter.record(timing.late_s * 1e6);
+                        self.stats.overruns += timing.overrun as u64;
+                    }
+                    self.on(ev, now);
+                }
+                _ => break,
+            }
+        }
+    }
+
+    /// When [`Core::handle_timeout`] must next be called, s; `None` once closed (or idle
+    /// after a failed start).
+    pub fn poll_timeout(&self) -> Option<f64> {
+        self.link.poll_timeout()
+    }
+
+    /// Whether frames are awaited before the next timeout.
+    pub fn expects_frames(&self) -> bool {
+        self.link.expects_frames()
+    }
+
+    /// The next frame to send.
+    pub fn poll_transmit(&mut self) -> Option<Frame> {
+        self.link.poll_transmit()
+    }
+
+    /// Records the compute time of the cycle just answered (µs, measured by the shell).
+    pub fn record_compute(&mut self, us: f64) {
+        self.compute.record(us);
+        self.stats.compute_us = [
+            self.compute.quantile(0.5),
+            self.compute.quantile(0.99),
+            self.compute.max_us(),
+        ];
+    }
+
+    /// Cycles started (SYNC sent) so far.
+    pub fn syncs(&self) -> u64 {
+        self.syncs
+    }
+
+    /// Cycles answered so far.
+    pub fn cycles(&self) -> u64 {
+        self.stats.cycles
+    }
+
+    /// Whether the link is closed (after a shutdown).
+    pub fn is_closed(&self) -> bool {
+        self.link.is_closed()
+    }
+
+    /// Whether the servo controller reached control mode (the controller exists).
+    pub fn is_ready(&self) -> bool {
+        self.ctl.is_some()
+    }
+
+    /// The start-up failure, when the first connection failed.
+    pub fn startup_failure(&self) -> Option<&LinkError> {
+        self.failure.as_ref().filter(|_| self.ctl.is_none())
+    }
+
+    /// The control cycle, once connected.
+    pub fn controller(&self) -> Option<&Controller> {
+        self.ctl.as_ref()
+    }
+
+    /// The last time the core saw, s.
+    pub fn now_s(&self) -> f64 {
+        self.now_s
+    }
+
+    /// The one fault: the controller's, or the start-up failure.
+    pub fn fault(&self) -> Option<Fault> {
+        match &self.ctl {
+            Some(c) => match c.activity() {
+                Activity::Faulted(f) => Some(f.clone()),
+                _ => None,
+            },
+            None => self.failure.clone().map(Fault::Link),
+        }
+    }
+
+    fn ready_controller(&self) -> Result<&Controller, CommandError> {
+        if self.exit != Exit::Running {
+            return Err(CommandError::ShuttingDown);
+        }
+        if self.restarting {
+            return Err(CommandError::NotReady(
+                "restarting the servo controller".into(),
+            ));
+        }
+        self.ctl.as_ref().ok_or_else(|| {
+            CommandError::NotReady(
+                self.failure
+                    .as_ref()
+                    .map_or("starting".to_string(), |f| f.to_string()),
+            )
+        })
+    }
+
+    /// What a move would be planned from now; refused unless a move could start.
+    pub fn plan_basis(&self) -> Result<PlanBasis, CommandError> {
+        let c = self.ready_controller()?;
+        c.ready_for_move()?;
+        let (speed, acceleration) = c.limits();
+        Ok(PlanBasis {
+            model: c.model_arc().clone(),
+            from: c.setpoint().q,
+            speed,
+            acceleration,
+        })
+    }
+
+    /// Applies a client's command at the core's current time; a refusal changes nothing.
+    pub fn submit(&mut self, cmd: Command) -> Result<(), CommandError> {
+        let now = self.now_s;
+        match cmd {
+            Command::Start { mv, basis } => {
+                self.ready_controller()?;
+                let c = self.ctl.as_mut().ok_or(CommandError::Stale)?;
+                c.ready_for_move()?;
+                if !Arc::ptr_eq(&basis.model, c.model_arc()) || basis.from != c.setpoint().q {
+                    return Err(CommandError::Stale);
+                }
+                c.start_move(mv, now)
+            }
+            Command::Stop => {
+                if let Some(c) = self.ctl.as_mut() {
+                    c.stop();
+                }
+                Ok(())
+            }
+            Command::Estop => {
+                self.link.halt(Request::Estop, now);
+                self.stop_sent = true;
+                if let Some(c) = self.ctl.as_mut() {
+                    c.halt(Fault::EmergencyStop);
+                }
+                Ok(())
+            }
+            Command::Reset => {
+                if self.exit != Exit::Running {
+                    return Err(CommandError::ShuttingDown);
+                }
+                if let Some(c) = self.ctl.as_mut() {
+                    c.reset();
+                }
+                self.failure = None;
+                let in_control = self.link.servo_state() == Some(ServoState::Control);
+                if self.stop_sent || !in_control || !self.link.is_running() {
+                    self.restarting = true;
+                    self.link.connect(now);
+                }
+                Ok(())
+            }
+            Command::SetPayload(n) => match self.ctl.as_mut() {
+                Some(c) => c.set_payload(n),
+                None => {
+                    if !(n.is_finite() && (0.0..=500.0).contains(&n)) {
+                        return Err(CommandError::Payload(n));
+                    }
+                    self.params.payload_n = n;
+                    Ok(())
+                }
+            },
+            Command::LoadModel(m) => match self.ctl.as_mut() {
+                Some(c) => c.load_model(m),
+                None => {
+                    self.model = m;
+                    Ok(())
+                }
+            },
+            Command::Shutdown => {
+                match self.ctl.as_mut() {
+                    Some(c) if self.link.is_running() => {
+                        c.stop();
+                        self.exit = Exit::Stopping;
+                    }
+                    _ => self.link.close(),
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn on(&mut self, ev: Option<LinkEvent>, now: f64) {
+        match ev {
+            None => {}
+            Some(LinkEvent::Connected(js)) => {
+                self.last = Some(js);
+                match self.ctl.as_mut() {
+                    None => {
+                        self.ctl = Some(Controller::new(
+                            self.model.clone(),
+                            self.params.clone(),
+                            &js,
+                        ))
+                    }
+                    Some(c) => c.resync(&js),
+                }
+                self.failure = None;
+                self.stop_sent = false;
+                self.restarting = false;
+            }
+            Some(LinkEvent::Cycle { stamp_s, feedback }) => self.cycle(stamp_s, feedback, now),
+            Some(LinkEvent::Acknowledged(..)) if self.exit == Exit::Halting => self.link.close(),
+            Some(LinkEvent::Acknowledged(..)) => {}
+            Some(LinkEvent::Failed(e)) => {
+                if self.exit == Exit::Halting {
+                    self.link.close();
+                    return;
+                }
+                tracing::error!(error = %e, "servo link");
+                self.restarting = false;
+                match self.ctl.as_mut() {
+                    Some(c) => {
+                        c.halt(Fault::Link(e));
+                        if !self.stop_sent && self.link.is_running() {
+                            self.link.halt(Request::Stop, now);
+                            self.stop_sent = true;
+                        }
+                    }
+                    None => self.failure = Some(e),
+                }
+            }
+        }
+    }
+
+    /// One cycle: feedback in, the controller's speeds (or a STOP) out. No allocation.
+    fn cycle(&mut self, stamp_s: f64, feedback: Option<JointState>, now: f64) {
+        if let Some(js) = feedback {
+            self.last = Some(js);
+        }
+        self.stats.cycles += 1;
+        self.stats.jitter_us = [
+            self.jitter.quantile(0.5),
+            self.jitter.quantile(0.99),
+            self.jitter.max_us(),
+        ];
+        let Some(c) = self.ctl.as_mut() else {
+            return;
+        };
+        if self.exit == Exit::Halting {
+            return;
+        }
+        let speeds = c.step(stamp_s, feedback.as_ref());
+        let faulted = matches!(c.activity(), Activity::Faulted(_));
+        let still = matches!(c.activity(), Activity::Holding | Activity::Faulted(_));
+        if self.exit == Exit::Stopping && still {
+            self.exit = Exit::Halting;
+            if self.stop_sent {
+                self.link.close();
+            } else {
+                self.link.halt(Request::Stop, now);
+            }
+            return;
+        }
+        if faulted {
+            if !self.stop_sent {
+                // a controlled stop of the servo; the brakes follow
+                self.link.halt(Request::Stop, now);
+                self.stop_sent = true;
+                if let Some(f) = self.fault() {
+                    tracing::error!(fault = %f, "fault: the arm is stopped until reset");
+                }
+            }
+        } else {
+            self.link.send_commands(&speeds);
+        }
+    }
+
+    /// The status snapshot.
+    pub fn status(&self) -> Status {
+        let fault = self.fault().map(|f| f.to_string());
+        let (state, setpoint, tool, payload) = match &self.ctl {
+            None => (
+                if self.failure.is_some() {
+                    "fault"
+                } else {
+                    "starting"
+                },
+                [0.0; 6],
+                None,
+                self.params.payload_n,
+            ),
+            Some(c) => {
+                let s = match c.activity() {
+                    _ if self.link.is_closed() => "closed",
+                    Activity::Faulted(_) => "fault",
+                    _ if self.restarting => "starting",
+                    Activity::Holding => "holding",
+                    Activity::Moving { .. } => "moving",
+                    Activity::Stopping { .. } => "stopping",
+                };
+                (
+                    s,
+                    c.setpoint().q,
+                    Some(c.model().fk(&c.setpoint().q)),
+                    c.payload_n(),
+                )
+            }
+        };
+        let (p, q) = tool
+            .map(|t| crate::model::pose_parts(&t))
+            .unwrap_or(([0.0; 3], [1.0, 0.0, 0.0, 0.0]));
+        Status {
+            state: state.to_string(),
+            fault,
+            servo: self.link.servo_state().map(|s| format!("{s:?}")),
+            setpoint,
+            q_motor: self.last.map(|s| s.q_motor).unwrap_or([0.0; 6]),
+            current: self.last.map(|s| s.current).unwrap_or([0.0; 6]),
+            tool_position: p,
+            tool_quaternion: q,
+            payload_n: payload,
+            link: self.link.counters(),
+            cycle: self.stats,
+        }
+    }
+}

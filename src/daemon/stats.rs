@@ -1,0 +1,70 @@
+//! Cycle statistics without allocation: a fixed-bucket histogram of durations and the
+//! numbers `status` reports about the control loop's timing.
+
+use serde::Serialize;
+
+/// Histogram of durations in microseconds (fixed buckets, no allocation per sample).
+#[derive(Debug, Clone)]
+pub struct Histogram {
+    buckets: [u64; 1000],
+    overflow: u64,
+    max_us: f64,
+    n: u64,
+}
+
+impl Default for Histogram {
+    fn default() -> Self {
+        Self {
+            buckets: [0; 1000],
+            overflow: 0,
+            max_us: 0.0,
+            n: 0,
+        }
+    }
+}
+
+impl Histogram {
+    /// Buckets of 10 µs up to 10 ms.
+    const W: f64 = 10.0;
+    /// Records `us` microseconds.
+    pub fn record(&mut self, us: f64) {
+        let i = (us.max(0.0) / Self::W) as usize;
+        match self.buckets.get_mut(i) {
+            Some(b) => *b += 1,
+            None => self.overflow += 1,
+        }
+        self.max_us = self.max_us.max(us);
+        self.n += 1;
+    }
+    /// The largest duration recorded, µs.
+    pub fn max_us(&self) -> f64 {
+        self.max_us
+    }
+    /// The `p` quantile (0…1), µs, to the bucket's upper edge.
+    pub fn quantile(&self, p: f64) -> f64 {
+        let k = (p * self.n as f64).ceil() as u64;
+        let mut c = 0;
+        for (i, b) in self.buckets.iter().enumerate() {
+            c += b;
+            if c >= k.max(1) {
+                return (i as f64 + 1.0) * Self::W;
+            }
+        }
+        self.max_us
+    }
+}
+
+/// Cycle statistics for `status`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
+pub struct CycleStats {
+    /// Cycles run.
+    pub cycles: u64,
+    /// Cycles that started later than one period after their deadline.
+    pub overruns: u64,
+    /// Wake-up lateness, p50 / p99 / max, µs.
+    pub jitter_us: [f64; 3],
+    /// Compute time of a cycle (receive → commands sent), p50 / p99 / max, µs.
+    pub compute_us: [f64; 3],
+    /// Worst-case bus load of the configured rate, %.
+    pub bus_load_pct: f64,
+}

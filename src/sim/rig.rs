@@ -1,0 +1,246 @@
+//! The simulated PA10 wired to the daemon, two ways:
+//!
+//! - [`SimulatedArm`]: the simulated servo controller on a [`VirtualBus`], running in real
+//!   time on its own runtime; `pa10d` (virtual backend), the demo and the real-time examples
+//!   hand its [`SimulatedArm::host`] endpoint to [`Daemon::start`](crate::daemon::runtime::Daemon::start).
+//! - [`Lockstep`]: the daemon's sans-IO [`Core`] and the sans-IO [`ServoSim`] exchanging
+//!   frames in *simulated* time, one thread, deterministic: the daemon tests run through it
+//!   in parallel and in a fraction of real time.
+//!
+//! Both draw the hidden true robot the same way ([`truth_from_config`]); the daemon never
+//! reads it.
+
+use std::collections::VecDeque;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use super::servo::{self, ServoConfig, ServoSim, SharedServo};
+use super::{SimNoise, TrueRobot};
+use crate::can::protocol::Frame;
+use crate::can::{VirtualBus, VirtualConfig, VirtualEndpoint};
+use crate::daemon::config::{Loaded, SimConfig};
+use crate::daemon::core::Core;
+use crate::daemon::runtime::lock;
+use crate::model::{Model, ModelError, frame_from_pose};
+
+/// Where the simulated arm's motors start, rad.
+pub const HOME: [f64; 6] = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
+
+/// The tool of a drawn truth: a 0.35 m tooling-ball holder along the flange axis.
+pub fn default_tool() -> crate::model::Frame {
+    frame_from_pose([0.0, 0.0, 0.35], [1.0, 0.0, 0.0, 0.0])
+}
+
+/// Why the simulated arm could not be built.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RigError {
+    /// The `sim.truth` model file.
+    #[error("sim.truth: {0}")]
+    Truth(#[from] ModelError),
+    /// The simulator's runtime.
+    #[error("simulator runtime: {0}")]
+    Runtime(#[from] std::io::Error),
+}
+
+/// The hidden true robot of a `sim` configuration section: the `truth` model file (relative
+/// to `config_dir`) or one drawn from `seed` around the nominal model with [`default_tool`].
+pub fn truth_from_config(sim: &SimConfig, config_dir: &Path) -> Result<TrueRobot, RigError> {
+    let noise = SimNoise::default();
+    Ok(match &sim.truth {
+        Some(p) => TrueRobot::from_model(Model::load(config_dir.join(p))?, noise, sim.seed),
+        None => TrueRobot::draw(sim.seed, &Model::nominal(), &default_tool(), noise)?,
+    })
+}
+
+/// The truth and seed a loaded daemon configuration asks for (its `sim` section, or the
+/// defaults).
+pub fn truth_for(loaded: &Loaded) -> Result<(TrueRobot, u64), RigError> {
+    let sim = loaded.config.sim.clone().unwrap_or_default();
+    let dir = loaded.model_path.parent().unwrap_or(Path::new("."));
+    Ok((truth_from_config(&sim, dir)?, sim.seed))
+}
+
+/// The simulated controller running in real time on a virtual bus.
+pub struct SimulatedArm {
+    servo: SharedServo,
+    bus: VirtualBus,
+    stop: tokio::sync::watch::Sender<bool>,
+    _rt: tokio::runtime::Runtime,
+}
+
+impl SimulatedArm {
+    /// Starts the controller of `truth` at [`HOME`] (noise seeded by `seed`), ticking every
+    /// millisecond.
+    pub fn start(truth: TrueRobot, seed: u64) -> Result<Self, RigError> {
+        let bus = VirtualBus::new(VirtualConfig::default());
+        let servo = Arc::new(Mutex::new(ServoSim::new(
+            truth,
+            ServoConfig::default(),
+            HOME,
+            seed,
+        )));
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .thread_name("pa10-sim")
+            .enable_all()
+            .build()?;
+        let (stop, rx) = tokio::sync::watch::channel(false);
+        rt.spawn(servo::run(
+            bus.endpoint(false),
+            servo.clone(),
+            Duration::from_millis(1),
+            rx,
+            |_, _| {},
+        ));
+        Ok(Self {
+            servo,
+            bus,
+            stop,
+            _rt: rt,
+        })
+    }
+
+    /// The arm a loaded daemon configuration describes (its `sim` section).
+    pub fn from_config(loaded: &Loaded) -> Result<Self, RigError> {
+        let (truth, seed) = truth_for(loaded)?;
+        Self::start(truth, seed)
+    }
+
+    /// A new endpoint on the arm's bus, for the host (the daemon).
+    pub fn host(&self) -> VirtualEndpoint {
+        self.bus.endpoint(false)
+    }
+
+    /// The simulated controller: ground truth and fault injection.
+    pub fn servo(&self) -> &SharedServo {
+        &self.servo
+    }
+
+    /// The virtual bus: more endpoints, statistics, bus-off.
+    pub fn bus(&self) -> &VirtualBus {
+        &self.bus
+    }
+}
+
+impl Drop for SimulatedArm {
+    fn drop(&mut self) {
+        let _ = self.stop.send(true);
+    }
+}
+
+/// The daemon core and the simulated controller in simulated time (see the module
+/// documentation). Frames take [`Lockstep::LATENCY_S`] each way; the plant ticks every
+/// millisecond; the core is woken exactly at its deadlines.
+pub struct Lockstep {
+    /// The daemon core, behind the same mutex the API handler takes.
+    pub core: Arc<Mutex<Core>>,
+    /// The simulated controller (ground truth, fault injection).
+    pub servo: ServoSim,
+    now: f64,
+    next_tick: f64,
+    to_servo: VecDeque<(f64, Frame)>,
+    to_host: VecDeque<(f64, Frame)>,
+    out: Vec<Frame>,
+}
+
+impl Lockstep {
+    /// One-way latency of a frame, s.
+    pub const LATENCY_S: f64 = 100e-6;
+    /// Plant tick, s.
+    pub const TICK_S: f64 = 1e-3;
+
+    /// Starts `core`'s session with `servo` at simulated time 0.
+    pub fn new(mut core: Core, servo: ServoSim) -> Self {
+        core.start(0.0);
+        Self {
+            core: Arc::new(Mutex::new(core)),
+            servo,
+            now: 0.0,
+            next_tick: 0.0,
+            to_servo: VecDeque::new(),
+            to_host: VecDeque::new(),
+            out: Vec::with_capacity(16),
+        }
+    }
+
+    /// The daemon a loaded configuration describes with the simulated arm of its `sim`
+    /// section at [`HOME`].
+    pub fn from_config(loaded: &Loaded) -> Result<Self, RigError> {
+        let (truth, seed) = truth_for(loaded)?;
+        let servo = ServoSim::new(truth, ServoConfig::default(), HOME, seed);
+        Ok(Self::new(Core::from_config(loaded), servo))
+    }
+
+    /// Simulated time, s.
+    pub fn now(&self) -> f64 {
+        self.now
+    }
+
+    /// Delivers `frame` to the daemon now, as a rogue node on the bus would.
+    pub fn inject(&mut self, frame: Frame) {
+        self.to_host.push_back((self.now, frame));
+    }
+
+    /// Runs for `seconds` of simulated time.
+    pub fn run_for(&mut self, seconds: f64) {
+        let end = self.now + seconds;
+        self.run_until(end);
+    }
+
+    /// Runs until `pred` holds (checked every simulated millisecond) or `timeout_s` passed;
+    /// whether it held.
+    pub fn run_while_not(&mut self, timeout_s: f64, mut pred: impl FnMut(&Self) -> bool) -> bool {
+        let end = self.now + timeout_s;
+        while self.now < end {
+            if pred(self) {
+                return true;
+            }
+            self.run_until((self.now + 1e-3).min(end));
+        }
+        pred(self)
+    }
+
+    /// Runs until simulated time `end` (s).
+    pub fn run_until(&mut self, end: f64) {
+        loop {
+            let t_core = lock(&self.core).poll_timeout().unwrap_or(f64::INFINITY);
+            let t_host = self.to_host.front().map_or(f64::INFINITY, |f| f.0);
+            let t_servo = self.to_servo.front().map_or(f64::INFINITY, |f| f.0);
+            let t = t_core.min(t_host).min(t_servo).min(self.next_tick);
+            if t > end {
+                self.now = end;
+                return;
+            }
+            self.now = self.now.max(t);
+            let now = self.now;
+            if t_host <= t {
+                if let Some((_, f)) = self.to_host.pop_front() {
+                    lock(&self.core).handle_frame(&f, now);
+                }
+            } else if t_servo <= t {
+                if let Some((_, f)) = self.to_servo.pop_front() {
+                    self.servo.handle(now, &f, &mut self.out);
+                }
+            } else if self.next_tick <= t {
+                self.servo.tick(now, &mut self.out);
+                self.next_tick += Self::TICK_S;
+            } else {
+                lock(&self.core).handle_timeout(now);
+            }
+            for f in self.out.drain(..) {
+                self.to_host.push_back((now + Self::LATENCY_S, f));
+            }
+            let mut core = lock(&self.core);
+            while let Some(f) = core.poll_transmit() {
+                self.to_servo.push_back((now + Self::LATENCY_S, f));
+            }
+        }
+    }
+
+    /// One API request (a JSON value), answered by the daemon's request handler.
+    pub fn call(&self, request: &serde_json::Value) -> serde_json::Value {
+        crate::daemon::api::handle(&self.core, &request.to_string())
+    }
+}
