@@ -5,8 +5,7 @@
 //! it skipped.
 
 use pa10::can::protocol::{
-    self, Command, ErrorCode, Fault, Feedback, Message, Request, ServoState, candump_line, mode,
-    status,
+    self, Command, ErrorCode, Fault, Feedback, Message, Request, ServoState, mode, status,
 };
 use serde_json::json;
 
@@ -59,9 +58,17 @@ fn a_real_dbc_tool_decodes_captured_frames_like_the_codec() {
         let f = protocol::encode(m).unwrap();
         // the capture decodes back to the same message in our codec too
         assert_eq!(protocol::decode(&f).unwrap(), *m);
-        log.push_str(&candump_line(k as f64 * 0.002, "vcan0", &f));
-        log.push('\n');
-        expected.push(json!({"id": f.id(), "signals": protocol::signals(m)}));
+        let record = pa10::can::candump::Record {
+            time_s: k as f64 * 0.002,
+            iface: "vcan0".into(),
+            frame: f,
+        };
+        log.push_str(&format!("{record}\n"));
+        let signals: serde_json::Map<String, serde_json::Value> = pa10::can::signals::signals(m)
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), json!(v)))
+            .collect();
+        expected.push(json!({"id": f.id(), "signals": signals}));
     }
     std::fs::write(dir.join("capture.log"), log).unwrap();
     std::fs::write(

@@ -391,14 +391,14 @@ async fn traffic_logs_as_candump_and_replays_identically() {
     // SYNC in, six FEEDBACK out (plus a heartbeat perhaps)
     let entries: Vec<_> = text
         .lines()
-        .map(|l| protocol::parse_candump_line(l).unwrap())
+        .map(|l| pa10::can::candump::Record::parse(l).unwrap())
         .collect();
     assert!(entries.len() >= 7, "{text}");
-    assert_eq!(entries[0].2.id(), 0x080);
+    assert_eq!(entries[0].frame.id(), 0x080);
     assert!(
         entries
             .iter()
-            .filter(|e| (0x181..=0x186).contains(&e.2.id()))
+            .filter(|e| (0x181..=0x186).contains(&e.frame.id()))
             .count()
             == 6
     );
@@ -418,6 +418,6 @@ async fn traffic_logs_as_candump_and_replays_identically() {
     while let Ok(BusEvent::Frame(f)) = ear.recv(Duration::from_millis(2)).await {
         heard.push(f);
     }
-    assert_eq!(heard, entries.iter().map(|e| e.2).collect::<Vec<_>>());
+    assert_eq!(heard, entries.iter().map(|e| e.frame).collect::<Vec<_>>());
     assert_eq!(heard, live, "the replay sounds like the live traffic");
 }

@@ -1,25 +1,140 @@
-//! can-utils' candump log format (`(ts) iface ID#DATA`): writing traffic as it passes and
-//! replaying a log onto a bus with its original timing.
+//! can-utils' candump log format (`(ts) iface ID#DATA`): a typed [`Record`] per line,
+//! reading a log with precise errors, writing traffic as it passes, and replaying a log onto
+//! a bus with its original timing.
 
+use std::fmt;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use super::bus::{BusError, CanBus};
-use super::protocol::{Frame, candump_line, parse_candump_line};
+use super::protocol::Frame;
 
-/// One logged frame: time (s), interface, frame.
-pub type Entry = (f64, String, Frame);
+/// One logged frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record {
+    /// Time stamp, s.
+    pub time_s: f64,
+    /// Interface name (e.g. `vcan0`).
+    pub iface: String,
+    /// The frame.
+    pub frame: Frame,
+}
 
-/// Reads a candump log; a malformed line is an error naming it.
-pub fn read_log(path: &Path) -> Result<Vec<Entry>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+/// Why a candump line or log was refused.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum CandumpError {
+    /// The log could not be read.
+    #[error("{path}: {source}")]
+    Io {
+        /// The log file.
+        path: PathBuf,
+        /// The error.
+        source: std::io::Error,
+    },
+    /// A line is not `(ts) iface ID#DATA` with a standard identifier and ≤ 8 data bytes.
+    #[error("{path}:{line}: not a candump line ({reason}): `{text}`")]
+    Line {
+        /// The log file.
+        path: PathBuf,
+        /// Line number, from 1.
+        line: usize,
+        /// What is wrong.
+        reason: &'static str,
+        /// The line (at most 80 characters of it).
+        text: String,
+    },
+    /// A log larger than [`MAX_LOG_BYTES`].
+    #[error("{path}: {bytes} bytes, more than the {MAX_LOG_BYTES} a log may have")]
+    TooLarge {
+        /// The log file.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+    },
+}
+
+/// The largest log [`read_log`] reads, bytes (≈ 5 minutes of 500 Hz traffic).
+pub const MAX_LOG_BYTES: u64 = 256 << 20;
+
+impl Record {
+    /// Parses one line; the error says what is wrong.
+    pub fn parse(line: &str) -> Result<Self, &'static str> {
+        let rest = line.trim().strip_prefix('(').ok_or("no `(time)`")?;
+        let (ts, rest) = rest.split_once(')').ok_or("no `(time)`")?;
+        let time_s: f64 = ts.parse().map_err(|_| "time is not a number")?;
+        if !time_s.is_finite() {
+            return Err("time is not finite");
+        }
+        let mut parts = rest.split_whitespace();
+        let iface = parts.next().ok_or("no interface")?.to_string();
+        let (id, data) = parts
+            .next()
+            .and_then(|p| p.split_once('#'))
+            .ok_or("no `ID#DATA`")?;
+        if id.len() > 3 {
+            return Err("not a standard (11-bit) identifier");
+        }
+        let id = u16::from_str_radix(id, 16).map_err(|_| "identifier is not hexadecimal")?;
+        if data.len() % 2 != 0 || data.len() > 16 {
+            return Err("data must be 0…8 whole bytes");
+        }
+        let bytes = (0..data.len())
+            .step_by(2)
+            .map(|i| u8::from_str_radix(&data[i..i + 2], 16))
+            .collect::<Result<Vec<u8>, _>>()
+            .map_err(|_| "data is not hexadecimal")?;
+        let frame = Frame::new(id, &bytes).ok_or("identifier beyond 11 bits")?;
+        Ok(Self {
+            time_s,
+            iface,
+            frame,
+        })
+    }
+}
+
+impl fmt::Display for Record {
+    /// `(ts) iface ID#DATA`, the time with microseconds.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "({:.6}) {} {:03X}#",
+            self.time_s,
+            self.iface,
+            self.frame.id()
+        )?;
+        for b in self.frame.data() {
+            write!(f, "{b:02X}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Reads a candump log; a malformed line is an error naming it. Blank lines are skipped.
+pub fn read_log(path: &Path) -> Result<Vec<Record>, CandumpError> {
+    let io = |source| CandumpError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let bytes = std::fs::metadata(path).map_err(io)?.len();
+    if bytes > MAX_LOG_BYTES {
+        return Err(CandumpError::TooLarge {
+            path: path.to_path_buf(),
+            bytes,
+        });
+    }
+    let text = std::fs::read_to_string(path).map_err(io)?;
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
         .map(|(i, l)| {
-            parse_candump_line(l)
-                .ok_or_else(|| format!("{}:{}: not a candump line: `{l}`", path.display(), i + 1))
+            Record::parse(l).map_err(|reason| CandumpError::Line {
+                path: path.to_path_buf(),
+                line: i + 1,
+                reason,
+                text: l.chars().take(80).collect(),
+            })
         })
         .collect()
 }
@@ -40,7 +155,14 @@ impl<W: Write> Logger<W> {
     }
     /// Logs `frame` at `ts_s` seconds; IO errors are reported, not fatal to the caller's bus.
     pub fn log(&mut self, ts_s: f64, frame: &Frame) -> std::io::Result<()> {
-        writeln!(self.out, "{}", candump_line(ts_s, &self.iface, frame))
+        let r = Record {
+            time_s: ts_s,
+            iface: std::mem::take(&mut self.iface),
+            frame: *frame,
+        };
+        let result = writeln!(self.out, "{r}");
+        self.iface = r.iface;
+        result
     }
     /// The writer (e.g. to take an in-memory log).
     pub fn out_mut(&mut self) -> &mut W {
@@ -53,15 +175,59 @@ impl<W: Write> Logger<W> {
 }
 
 /// Sends the logged frames onto `bus`, spaced as they were logged (first frame at once).
-pub async fn replay<B: CanBus>(bus: &mut B, entries: &[Entry]) -> Result<usize, BusError> {
-    let Some(first) = entries.first() else {
+pub async fn replay<B: CanBus>(bus: &mut B, records: &[Record]) -> Result<usize, BusError> {
+    let Some(first) = records.first() else {
         return Ok(0);
     };
     let t0 = tokio::time::Instant::now();
-    for (ts, _, f) in entries {
-        let due = t0 + Duration::from_secs_f64((ts - first.0).max(0.0));
+    for r in records {
+        let due = t0 + Duration::from_secs_f64((r.time_s - first.time_s).max(0.0));
         tokio::time::sleep_until(due).await;
-        bus.send(*f).await?;
+        bus.send(r.frame).await?;
     }
-    Ok(entries.len())
+    Ok(records.len())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_round_trip_and_bad_lines_say_why() {
+        let f = Frame::new(0x181, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+        let r = Record {
+            time_s: 12.5,
+            iface: "vcan0".into(),
+            frame: f,
+        };
+        let l = r.to_string();
+        assert_eq!(l, "(12.500000) vcan0 181#0102030405060708");
+        assert_eq!(Record::parse(&l), Ok(r));
+        assert_eq!(
+            Record::parse("(1.0) can0 080#").map(|r| r.frame),
+            Ok(Frame::new(0x80, &[]).unwrap())
+        );
+        for (line, why) in [
+            ("garbage", "time"),
+            ("(1.0) can0 080#0", "whole bytes"),
+            ("(x) can0 080#00", "not a number"),
+            ("(1.0) can0 1FFFFFFF#00", "standard"),
+            ("(1.0) can0 800#00", "11 bits"),
+            ("(1.0) can0 080#0G", "hexadecimal"),
+            ("(1.0) can0 080#001122334455667788", "whole bytes"),
+            ("(inf) can0 080#00", "finite"),
+        ] {
+            let e = Record::parse(line).unwrap_err();
+            assert!(e.contains(why), "{line}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_log_error_names_the_file_and_line() {
+        let p = std::env::temp_dir().join(format!("pa10-candump-{}.log", std::process::id()));
+        std::fs::write(&p, "(0.1) vcan0 080#00\n\n(0.2) vcan0 zz#00\n").unwrap();
+        let e = read_log(&p).unwrap_err().to_string();
+        std::fs::remove_file(&p).unwrap();
+        assert!(e.contains(":3:") && e.contains("hexadecimal"), "{e}");
+    }
 }

@@ -1,9 +1,11 @@
-//! The CAN layer: the sans-IO protocol codec ([`protocol`]) and the [`CanBus`] abstraction
-//! with its backends ([`virtual_bus`] in-process, `socketcan_bus` on Linux).
+//! The CAN layer: the sans-IO protocol codec ([`protocol`], no formats), the DBC view of a
+//! message ([`signals`]), candump logs ([`candump`]) and the [`CanBus`] abstraction with its
+//! backends ([`virtual_bus`] in-process, `socketcan_bus` on Linux).
 
 pub mod bus;
 pub mod candump;
 pub mod protocol;
+pub mod signals;
 #[cfg(target_os = "linux")]
 pub mod socketcan_bus;
 pub mod virtual_bus;

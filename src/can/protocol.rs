@@ -578,64 +578,6 @@ pub fn decode(frame: &Frame) -> Result<Message, DecodeError> {
     }
 }
 
-/// The message's fields as named signals in SI units — the names and scalings of
-/// `docs/pa10.dbc` — for comparing with a DBC tool's decoding.
-pub fn signals(m: &Message) -> serde_json::Value {
-    use serde_json::json;
-    match *m {
-        Message::Control {
-            request,
-            watchdog_ms,
-        } => json!({"request": request as u8, "watchdog_ms": watchdog_ms}),
-        Message::State {
-            state,
-            fault,
-            cycle,
-        } => json!({"state": state as u8, "fault": fault as u8, "cycle": cycle}),
-        Message::Sync { cycle } => json!({ "cycle": cycle }),
-        Message::Error { code, axis, detail } => {
-            json!({"code": code as u8, "axis": axis, "detail": detail})
-        }
-        Message::Command(c) => json!({
-            "brake": c.mode & mode::BRAKE, "servo": (c.mode & mode::SERVO) >> 1,
-            "torque_mode": (c.mode & mode::TORQUE) >> 2, "deadman": (c.mode & mode::DEADMAN) >> 3,
-            "cycle": c.cycle, "speed": c.speed_rad_s(), "torque": c.torque_nm(),
-        }),
-        Message::Feedback(f) => json!({
-            "angle": f.angle_rad(), "current": f.current_a(),
-            "brake_on": f.status & status::BRAKE_ON, "servo_on": (f.status & status::SERVO_ON) >> 1,
-            "fault": (f.status & status::FAULT) >> 2, "watchdog": (f.status & status::WATCHDOG) >> 3,
-            "limit": (f.status & status::LIMIT) >> 4, "deadman": (f.status & status::DEADMAN) >> 5,
-            "cycle": f.cycle,
-        }),
-    }
-}
-
-/// A frame in can-utils' candump log format: `(ts) iface ID#DATA` (ts in seconds).
-pub fn candump_line(ts_s: f64, iface: &str, f: &Frame) -> String {
-    let data: String = f.data().iter().map(|b| format!("{b:02X}")).collect();
-    format!("({ts_s:.6}) {iface} {:03X}#{data}", f.id())
-}
-
-/// Parses one candump log line into (timestamp s, interface, frame).
-pub fn parse_candump_line(line: &str) -> Option<(f64, String, Frame)> {
-    let line = line.trim();
-    let rest = line.strip_prefix('(')?;
-    let (ts, rest) = rest.split_once(')')?;
-    let mut parts = rest.split_whitespace();
-    let iface = parts.next()?.to_string();
-    let (id, data) = parts.next()?.split_once('#')?;
-    let id = u16::from_str_radix(id, 16).ok()?;
-    if data.len() % 2 != 0 || data.len() > 16 {
-        return None;
-    }
-    let bytes: Option<Vec<u8>> = (0..data.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(&data[i..i + 2], 16).ok())
-        .collect();
-    Some((ts.parse().ok()?, iface, Frame::new(id, &bytes?)?))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -720,20 +662,6 @@ mod tests {
             }))
             .is_err()
         );
-    }
-
-    #[test]
-    fn candump_lines_round_trip() {
-        let f = Frame::new(0x181, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
-        let l = candump_line(12.5, "vcan0", &f);
-        assert_eq!(l, "(12.500000) vcan0 181#0102030405060708");
-        assert_eq!(parse_candump_line(&l), Some((12.5, "vcan0".to_string(), f)));
-        assert_eq!(
-            parse_candump_line("(1.0) can0 080#"),
-            Some((1.0, "can0".into(), Frame::new(0x80, &[]).unwrap()))
-        );
-        assert!(parse_candump_line("garbage").is_none());
-        assert!(parse_candump_line("(1.0) can0 080#0").is_none());
     }
 
     fn message() -> impl Strategy<Value = Message> {

@@ -217,20 +217,29 @@ fn axis_value(spec: &str, flag: &str) -> Result<(usize, f64)> {
     }
 }
 
+/// `{"id": …, "signals": {name: value}}`: what the cantools check compares.
+fn signals_json(id: u16, m: &pa10::can::Message) -> serde_json::Value {
+    let signals: serde_json::Map<String, serde_json::Value> = pa10::can::signals::signals(m)
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), serde_json::json!(v)))
+        .collect();
+    serde_json::json!({ "id": id, "signals": signals })
+}
+
 fn decode_log(file: &Path) -> Result<()> {
-    let entries = pa10::can::candump::read_log(file).map_err(anyhow::Error::msg)?;
-    let mut out = Vec::with_capacity(entries.len());
-    for (k, (_, _, f)) in entries.iter().enumerate() {
-        let m = pa10::can::protocol::decode(f)
+    let records = pa10::can::candump::read_log(file)?;
+    let mut out = Vec::with_capacity(records.len());
+    for (k, r) in records.iter().enumerate() {
+        let m = pa10::can::protocol::decode(&r.frame)
             .with_context(|| format!("{}: frame {}", file.display(), k + 1))?;
-        out.push(serde_json::json!({"id": f.id(), "signals": pa10::can::protocol::signals(&m)}));
+        out.push(signals_json(r.frame.id(), &m));
     }
     println!("{}", serde_json::Value::Array(out));
     Ok(())
 }
 
 fn replay(a: &ReplayArgs) -> Result<()> {
-    let entries = pa10::can::candump::read_log(&a.file).map_err(anyhow::Error::msg)?;
+    let entries = pa10::can::candump::read_log(&a.file)?;
     let rt = runtime()?;
     let n = rt.block_on(async {
         let mut bus = open_can(&a.can)?;
