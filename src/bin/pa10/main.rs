@@ -10,6 +10,7 @@ mod collect_cmd;
 mod demo_cmd;
 mod discover_cmd;
 mod model_cmds;
+mod sim_cmd;
 
 use std::process::ExitCode;
 
@@ -41,7 +42,7 @@ enum Command {
     /// Find what the model misses: name the missing effect, add it, show the gap shrink.
     Discover(discover_cmd::DiscoverArgs),
     /// Simulated PA10: the servo controller on a CAN interface, measurement campaigns, replay.
-    Sim(calib_cmd::SimArgs),
+    Sim(sim_cmd::SimArgs),
     /// Daemon: its state (pose, joints, faults, cycle statistics).
     Status(client_cmd::Conn),
     /// Daemon: move the arm (joint or straight-line tool move).
@@ -95,7 +96,7 @@ fn main() -> ExitCode {
         Command::Discover(a) => discover_cmd::run(&a),
         Command::Demo(a) => demo_cmd::run(&a),
         Command::Collect(c) => collect_cmd::run(&c),
-        Command::Sim(c) => calib_cmd::sim(&c),
+        Command::Sim(c) => sim_cmd::sim(&c),
         Command::Status(c) => client_cmd::status(&c),
         Command::Move { conn, cmd } => client_cmd::move_cmd(&conn, &cmd),
         Command::Stop(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "stop"})),
