@@ -2,7 +2,7 @@
 //! physics), fitted without ever reading the truth, then compared with it.
 
 use pa10::accuracy::ARCMIN;
-use pa10::calib::base::{Psi, fit_psi, frame_from_psi, psi_from_frame};
+use pa10::calib::base::{BaseParams, fit_psi, frame_from_psi, psi_from_frame};
 use pa10::calib::fit::{
     CalibOptions, calibrate, canonical_base, evaluate, fit_base_only, resolver_floor,
 };
@@ -177,7 +177,7 @@ fn inner_level_alone_recovers_a_known_base_on_noise_free_data() {
         })
         .collect();
     let start = psi_from_frame(truth.base_from_instrument())
-        + Psi::new(0.05, -0.05, 0.03, 0.02, -0.02, 0.3);
+        + BaseParams::new(0.05, -0.05, 0.03, 0.02, -0.02, 0.3);
     let (psi, cost) = fit_psi(&pairs, &start, 1.0);
     assert!(cost < 1e-24, "{cost}");
     assert!(pose_error(&frame_from_psi(&psi), truth.base_from_instrument()).norm() < 1e-11);

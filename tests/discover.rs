@@ -4,7 +4,7 @@
 
 use nalgebra::Vector3;
 use pa10::calib::dataset::Dataset;
-use pa10::discover::effects::{self, Effect, Kind, Obs, Slot, State};
+use pa10::discover::effects::{self, Effect, EffectState, Kind, Obs, Slot};
 use pa10::discover::{DiscoverError, DiscoverOptions, Discovery, discover};
 use pa10::model::{Frame, JointError, Model, Torques};
 use pa10::sim::experiment::{DiscoverySpec, discovery_campaign, paper_model, scenarios};
@@ -22,7 +22,7 @@ fn obs(q: [f64; 6], tau: [f64; 6], load_n: f64, dir: f64, thermal: f64) -> Obs {
     }
 }
 
-fn position(s: &State, o: &Obs) -> Vector3<f64> {
+fn position(s: &EffectState, o: &Obs) -> Vector3<f64> {
     let g = s.geometry().unwrap();
     effects::predict(s, &g, o).translation.vector
 }
@@ -49,7 +49,7 @@ fn joint_side_effects_move_the_link_as_documented() {
     let mut r = rng(4);
     let q = random_q(&mut r, &m);
     let tau = [0.0, 60.0, 20.0, 8.0, 3.0, 0.5];
-    let mut s = State::from_model(&m, 50.0);
+    let mut s = EffectState::from_model(&m, 50.0);
     let base = effects::link_angles(&s, &obs(q, tau, 0.0, 1.0, 0.0));
     // Linear compliance on J4: the link lags by c·τ.
     s.set(Slot::Compliance(3), 2.5e-4);
@@ -71,7 +71,7 @@ fn joint_side_effects_move_the_link_as_documented() {
 #[test]
 fn the_model_file_compensates_the_run_time_effects_exactly_as_discovery_predicts_them() {
     let m = perturbed_model(&mut rng(5));
-    let mut s = State::from_model(&m, 50.0);
+    let mut s = EffectState::from_model(&m, 50.0);
     for (slot, v) in [
         (Slot::Compliance(3), 1.0 / 4e3),
         (Slot::JointErr(2, 2), 3e-4),
@@ -120,7 +120,7 @@ fn frame_effects_move_the_target_as_documented() {
     let q = random_q(&mut rng(8), &m);
     let tau = [0.0; 6];
     let o = obs(q, tau, 40.0, 0.0, 15.0);
-    let s0 = State::from_model(&m, 50.0);
+    let s0 = EffectState::from_model(&m, 50.0);
     let p0 = position(&s0, &o);
     let f = m.frames(&q);
     // Thermal growth of the forearm (d4 along z3): the target moves by L·α·ΔT along z3.

@@ -10,10 +10,10 @@ use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Translation3, Vector3, Vect
 use crate::model::{Frame, rotation_log};
 
 /// The six base-frame parameters.
-pub type Psi = Vector6<f64>;
+pub type BaseParams = Vector6<f64>;
 
 /// Ψ → `base_from_instrument`.
-pub fn frame_from_psi(psi: &Psi) -> Frame {
+pub fn frame_from_psi(psi: &BaseParams) -> Frame {
     let r = Rotation3::from_axis_angle(&Vector3::x_axis(), psi[3])
         * Rotation3::from_axis_angle(&Vector3::y_axis(), psi[4])
         * Rotation3::from_axis_angle(&Vector3::z_axis(), psi[5]);
@@ -21,7 +21,7 @@ pub fn frame_from_psi(psi: &Psi) -> Frame {
 }
 
 /// `base_from_instrument` → Ψ (γy within ±90°).
-pub fn psi_from_frame(f: &Frame) -> Psi {
+pub fn psi_from_frame(f: &Frame) -> BaseParams {
     let r = f.rotation.matrix();
     let gy = r[(0, 2)].clamp(-1.0, 1.0).asin();
     let gx = (-r[(1, 2)]).atan2(r[(2, 2)]);
@@ -31,7 +31,7 @@ pub fn psi_from_frame(f: &Frame) -> Psi {
 }
 
 /// Rotation axes (base frame) of γx, γy, γz at Ψ: the columns of `∂R/∂γ` as angular rates.
-pub fn psi_axes(psi: &Psi) -> [Vector3<f64>; 3] {
+pub fn psi_axes(psi: &BaseParams) -> [Vector3<f64>; 3] {
     let rx = Rotation3::from_axis_angle(&Vector3::x_axis(), psi[3]);
     let ry = Rotation3::from_axis_angle(&Vector3::y_axis(), psi[4]);
     [Vector3::x(), rx * Vector3::y(), rx * ry * Vector3::z()]
@@ -43,7 +43,7 @@ pub fn psi_axes(psi: &Psi) -> [Vector3<f64>; 3] {
 pub fn residual_and_psi_jacobian(
     pred: &Frame,
     meas: &Frame,
-    psi: &Psi,
+    psi: &BaseParams,
     base: &Frame,
     r_max: f64,
 ) -> (Vector6<f64>, SMatrix<f64, 6, 6>) {
@@ -66,8 +66,8 @@ pub fn residual_and_psi_jacobian(
 /// Inner level: Ψ minimising the squared residuals of `pairs` (model prediction in the
 /// base frame, measurement in the instrument frame), Gauss–Newton with step halving from
 /// `start`. Returns Ψ and the final cost.
-pub fn fit_psi(pairs: &[(Frame, Frame)], start: &Psi, r_max: f64) -> (Psi, f64) {
-    let cost_at = |psi: &Psi| {
+pub fn fit_psi(pairs: &[(Frame, Frame)], start: &BaseParams, r_max: f64) -> (BaseParams, f64) {
+    let cost_at = |psi: &BaseParams| {
         let b = frame_from_psi(psi);
         pairs
             .iter()
@@ -195,23 +195,23 @@ mod tests {
     use super::*;
 
     fn some_base() -> Frame {
-        frame_from_psi(&Psi::new(0.4, -0.7, -0.2, 0.004, -0.006, 2.1))
+        frame_from_psi(&BaseParams::new(0.4, -0.7, -0.2, 0.004, -0.006, 2.1))
     }
 
     #[test]
     fn psi_round_trips() {
-        let psi = Psi::new(0.4, -0.7, -0.2, 0.004, -0.006, 2.1);
+        let psi = BaseParams::new(0.4, -0.7, -0.2, 0.004, -0.006, 2.1);
         assert!((psi_from_frame(&frame_from_psi(&psi)) - psi).norm() < 1e-14);
     }
 
     #[test]
     fn psi_jacobian_matches_finite_differences() {
-        let psi = Psi::new(0.4, -0.7, -0.2, 0.004, -0.006, 2.1);
+        let psi = BaseParams::new(0.4, -0.7, -0.2, 0.004, -0.006, 2.1);
         let pred = crate::model::Model::nominal().fk(&[0.3, 0.6, 1.2, -0.4, 0.9, 0.2]);
         let meas = some_base().inverse() * pred * Frame::translation(1e-4, 0.0, -2e-4);
         let (_, j) = residual_and_psi_jacobian(&pred, &meas, &psi, &frame_from_psi(&psi), 1.0);
         for k in 0..6 {
-            let mut d = Psi::zeros();
+            let mut d = BaseParams::zeros();
             d[k] = 1e-7;
             let rp = residual_and_psi_jacobian(
                 &pred,
@@ -252,7 +252,7 @@ mod tests {
             .iter()
             .map(|q| (m.fk(q), base.inverse() * m.fk(q)))
             .collect();
-        let (psi, cost) = fit_psi(&pairs, &Psi::new(0.0, 0.0, 0.0, 0.0, 0.0, 2.0), 1.0);
+        let (psi, cost) = fit_psi(&pairs, &BaseParams::new(0.0, 0.0, 0.0, 0.0, 0.0, 2.0), 1.0);
         assert!(cost < 1e-26, "{cost}");
         assert!((psi - psi_from_frame(&base)).norm() < 1e-12, "{psi}");
     }

@@ -1,6 +1,6 @@
 //! The two-level Levenberg–Marquardt identification (seed paper §II-C).
 //!
-//! **Outer level**: the 30 parameters (or 27 with `linear_only`) in scaled form — geometric
+//! **OuterProblem level**: the 30 parameters (or 27 with `linear_only`) in scaled form — geometric
 //! departures divided by the paper's tolerances (a 0.25 mm, α 1e-3 rad, d 0.25 mm,
 //! β 1e-3 rad, θ 5e-4 rad) and stiffness as `ln(K / K_seed)` — minimising the paper's cost:
 //! position errors / `r_max` and orientation errors (rad) over every row, plus the optional
@@ -20,7 +20,7 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use rayon::prelude::*;
 
-use super::base::{self, Psi};
+use super::base::{self, BaseParams};
 use super::dataset::{Dataset, Effort};
 use super::weights::{self, Whitening, config_groups, whitening};
 use crate::model::params::{IDX_KCUB, IDX_KLIN, PARAM_COUNT};
@@ -158,11 +158,11 @@ pub struct CalibResult {
     /// The noise the data show, at the fitted model (with [`Weighting::Measured`]).
     pub noise: Option<crate::noise::NoiseModel>,
     /// Base-frame parameters Ψ (m, rad).
-    pub psi: Psi,
+    pub psi: BaseParams,
 }
 
 /// What one start reached: scaled parameters, cost, base frame.
-type StartOutcome = (DVector<f64>, f64, Psi);
+type StartOutcome = (DVector<f64>, f64, BaseParams);
 
 /// A dataset row prepared for fitting.
 #[derive(Debug, Clone)]
@@ -324,7 +324,7 @@ pub(crate) fn choose_inner(data: &Dataset, opts: &CalibOptions) -> Result<Vec<St
 }
 
 /// The outer least-squares problem for the `levenberg-marquardt` crate.
-struct Outer<'a> {
+struct OuterProblem<'a> {
     base_model: &'a Model,
     rows: &'a [Prepared],
     map: &'a ParamMap,
@@ -335,10 +335,10 @@ struct Outer<'a> {
     whiten: Option<&'a Whitening>,
     s: DVector<f64>,
     model: Option<Model>,
-    psi: Psi,
+    psi: BaseParams,
 }
 
-impl<'a> Outer<'a> {
+impl<'a> OuterProblem<'a> {
     /// The problem at scaled parameters `s` (the inner level solved from `psi`).
     #[allow(clippy::too_many_arguments)]
     fn at(
@@ -349,9 +349,9 @@ impl<'a> Outer<'a> {
         whiten: Option<&'a Whitening>,
         priors: &'a [DVector<f64>],
         s: &DVector<f64>,
-        psi: Psi,
+        psi: BaseParams,
     ) -> Self {
-        let mut pb = Outer {
+        let mut pb = OuterProblem {
             base_model,
             rows,
             map,
@@ -383,7 +383,7 @@ impl<'a> Outer<'a> {
             .collect()
     }
 
-    fn solve_inner(&self, model: &Model, start: &Psi) -> Psi {
+    fn solve_inner(&self, model: &Model, start: &BaseParams) -> BaseParams {
         let pairs: Vec<(Frame, Frame)> = self
             .rows
             .iter()
@@ -483,7 +483,7 @@ impl<'a> Outer<'a> {
     }
 }
 
-impl levenberg_marquardt::LeastSquaresProblem<f64, Dyn, Dyn> for Outer<'_> {
+impl levenberg_marquardt::LeastSquaresProblem<f64, Dyn, Dyn> for OuterProblem<'_> {
     type ResidualStorage = Owned<f64, Dyn>;
     type JacobianStorage = Owned<f64, Dyn, Dyn>;
     type ParameterStorage = Owned<f64, Dyn>;
@@ -512,7 +512,7 @@ pub(crate) fn seed_base(
     model: &Model,
     rows: &[Prepared],
     lines: Option<&Dataset>,
-) -> Result<Psi, CalibError> {
+) -> Result<BaseParams, CalibError> {
     let inner: Vec<&Prepared> = rows.iter().filter(|r| r.inner).collect();
     let robot: Vec<_> = inner
         .iter()
@@ -705,7 +705,7 @@ pub fn calibrate(
     };
 
     // Weak directions from the SVD at the start.
-    let probe = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &[], &s0, psi0);
+    let probe = OuterProblem::at(&m0, &rows, &map, opts, whitening.as_ref(), &[], &s0, psi0);
     let j0 = probe
         .evaluate(true)
         .and_then(|(_, j)| j)
@@ -745,14 +745,14 @@ pub fn calibrate(
         })
         .collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    let solve = |starts: &[(DVector<f64>, Psi)],
+    let solve = |starts: &[(DVector<f64>, BaseParams)],
                  whitening: Option<&Whitening>,
                  patience: usize|
-     -> Result<(DVector<f64>, f64, Psi, Vec<f64>), CalibError> {
+     -> Result<(DVector<f64>, f64, BaseParams, Vec<f64>), CalibError> {
         let runs: Vec<Result<StartOutcome, String>> = starts
             .par_iter()
             .map(|(s, psi)| {
-                let pb = Outer::at(&m0, &rows, &map, opts, whitening, &priors, s, *psi);
+                let pb = OuterProblem::at(&m0, &rows, &map, opts, whitening, &priors, s, *psi);
                 let (pb, report) = levenberg_marquardt::LevenbergMarquardt::new()
                     .with_patience(patience)
                     .minimize(pb);
@@ -788,7 +788,7 @@ pub fn calibrate(
             })?;
         Ok((s, cost, psi, start_costs))
     };
-    let starts: Vec<(DVector<f64>, Psi)> = starts.into_iter().map(|s| (s, psi0)).collect();
+    let starts: Vec<(DVector<f64>, BaseParams)> = starts.into_iter().map(|s| (s, psi0)).collect();
     let (mut s, mut cost, mut psi, start_costs) = solve(&starts, whitening.as_ref(), 200)?;
     let mut noise_model = None;
     if opts.weighting == Weighting::Measured {
@@ -800,7 +800,8 @@ pub fn calibrate(
         let between_dof = ((6 * configs) as f64 - map.free.len() as f64 - 6.0).max(1.0);
         let mut used = first_sigma;
         for _ in 0..3 {
-            let fitted = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, &s, psi);
+            let fitted =
+                OuterProblem::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, &s, psi);
             let model = fitted
                 .model
                 .clone()
@@ -846,7 +847,7 @@ pub fn calibrate(
     }
 
     // Final model, Jacobian, covariance.
-    let fin = Outer::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, &s, psi);
+    let fin = OuterProblem::at(&m0, &rows, &map, opts, whitening.as_ref(), &priors, &s, psi);
     let (r, j) = fin
         .evaluate(true)
         .ok_or_else(|| CalibError::Failed("final evaluation".into()))?;

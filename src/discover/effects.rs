@@ -1,7 +1,7 @@
 //! The library of candidate effects: what each one is called, what its parameters mean
 //! (with units), and how it changes the predicted pose.
 //!
-//! Every effect's parameters live in one flat [`State`] (zero means "absent"), addressed
+//! Every effect's parameters live in one flat [`EffectState`] (zero means "absent"), addressed
 //! by [`Slot`]s, so that fitting a model with any set of effects is one least-squares
 //! problem over a list of slots. [`predict`] is the forward model:
 //!
@@ -16,7 +16,7 @@
 use nalgebra::{Rotation3, Translation3, Vector3, Vector6};
 
 use crate::model::params::{HAYATI_JOINT, IDX_D, IDX_THETA};
-use crate::model::{Frame, JointError, Model, ModelData, ModelError, Stiffness, pose_error};
+use crate::model::{Frame, JointError, Model, ModelError, ModelFile, Stiffness, pose_error};
 
 /// Links (DH rows, zero-based) whose length can grow with temperature: the shoulder column
 /// d1, upper arm a2, forearm d4 and wrist d6.
@@ -321,7 +321,7 @@ impl Effect {
     }
 }
 
-/// One scalar of a [`State`].
+/// One scalar of an [`EffectState`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Slot {
     /// Geometric departure, index 0…23 in the `ParamVector` layout.
@@ -369,10 +369,10 @@ impl Slot {
 
 /// Every parameter of every effect, plus the model's geometry; zero means absent.
 #[derive(Debug, Clone, PartialEq)]
-pub struct State {
+pub struct EffectState {
     /// Geometry: DH, departures, tool, base frame, masses, limits (springs and joint
     /// errors are held below instead).
-    pub geom: ModelData,
+    pub geom: ModelFile,
     /// Linear compliance per joint, rad/(N·m) (0: rigid).
     pub compliance: [f64; 6],
     /// Cubic stiffness per joint, N·m/rad³.
@@ -391,7 +391,7 @@ pub struct State {
     pub tool_offset: [f64; 3],
 }
 
-impl State {
+impl EffectState {
     /// The state of `model`: its geometry, springs and joint errors; every other effect
     /// zero. `gear_ratio` is used for joints without joint errors.
     pub fn from_model(model: &Model, gear_ratio: f64) -> Self {
@@ -516,7 +516,7 @@ pub fn base_correction(b: &[f64; 6]) -> Frame {
     )
 }
 
-fn dep_ref(d: &ModelData, i: usize) -> f64 {
+fn dep_ref(d: &ModelFile, i: usize) -> f64 {
     let j = i % 6;
     let e = &d.departures[j];
     match i / 6 {
@@ -528,7 +528,7 @@ fn dep_ref(d: &ModelData, i: usize) -> f64 {
     }
 }
 
-fn set_dep(d: &mut ModelData, i: usize, v: f64) {
+fn set_dep(d: &mut ModelFile, i: usize, v: f64) {
     let j = i % 6;
     let e = &mut d.departures[j];
     match i / 6 {
@@ -601,7 +601,7 @@ pub fn deflection(c: f64, kcub: f64, tau: f64) -> f64 {
 
 /// Link angles of `obs` under the state's joint-side effects, rad.
 #[inline]
-pub fn link_angles(s: &State, obs: &Obs) -> [f64; 6] {
+pub fn link_angles(s: &EffectState, obs: &Obs) -> [f64; 6] {
     std::array::from_fn(|j| {
         obs.q[j]
             - deflection(s.compliance[j], s.kcub[j], obs.tau[j])
@@ -650,8 +650,8 @@ fn rotate_about(x: &Frame, c: &Vector3<f64>, theta: &Vector3<f64>) -> Frame {
 }
 
 /// The predicted target pose in the robot base frame. `geom` must be
-/// [`State::geometry`] of `s`.
-pub fn predict(s: &State, geom: &Model, obs: &Obs) -> Frame {
+/// [`EffectState::geometry`] of `s`.
+pub fn predict(s: &EffectState, geom: &Model, obs: &Obs) -> Frame {
     let q = link_angles(s, obs);
     let f = geom.frames(&q);
     let off = Translation3::new(s.tool_offset[0], s.tool_offset[1], s.tool_offset[2]);
@@ -689,7 +689,7 @@ pub fn predict(s: &State, geom: &Model, obs: &Obs) -> Frame {
 /// Residual of one observation: predicted minus measured pose (position m, orientation
 /// rad) in the base frame, with `base` = `geom.base_from_instrument()`.
 #[inline]
-pub fn residual(s: &State, geom: &Model, obs: &Obs) -> Vector6<f64> {
+pub fn residual(s: &EffectState, geom: &Model, obs: &Obs) -> Vector6<f64> {
     let pred = predict(s, geom, obs);
     let meas = geom.base_from_instrument() * obs.meas;
     pose_error(&pred, &meas)

@@ -18,7 +18,7 @@ use nalgebra::{DMatrix, DVector, Matrix6, SymmetricEigen, Vector6};
 use crate::noise::sym_pow as inv_pow;
 use rayon::prelude::*;
 
-use super::effects::{Obs, Slot, State, residual};
+use super::effects::{EffectState, Obs, Slot, residual};
 use crate::model::{Model, ModelError};
 
 /// One configuration's rows and whitening.
@@ -64,9 +64,9 @@ impl Problem {
     /// pose Jacobian of `geom` at the link angles of `state`.
     pub fn new(
         obs: Vec<Obs>,
-        blocks: Vec<(Vec<usize>, bool, Vec<Vec<usize>>)>,
+        blocks: Vec<super::layout::ConfigRows>,
         d: &[Matrix6<f64>],
-        state: &State,
+        state: &EffectState,
         geom: &Model,
         sigma_resolver: f64,
     ) -> Self {
@@ -75,7 +75,7 @@ impl Problem {
         let mut offset = 0;
         let blocks = blocks
             .into_iter()
-            .map(|(rows, train, cells)| {
+            .map(|super::layout::ConfigRows { rows, train, cells }| {
                 let q = super::effects::link_angles(state, &obs[rows[0]]);
                 let j = geom.jacobian(&q);
                 let s = j * j.transpose() * (sigma_resolver * sigma_resolver);
@@ -106,12 +106,12 @@ impl Problem {
     }
 
     /// Raw residuals (pose errors, m and rad) of every observation at `state`.
-    pub fn raw(&self, state: &State) -> Result<Vec<Vector6<f64>>, ModelError> {
+    pub fn raw(&self, state: &EffectState) -> Result<Vec<Vector6<f64>>, ModelError> {
         let geom = state.geometry()?;
         Ok(self.raw_with(state, &geom))
     }
 
-    fn raw_with(&self, state: &State, geom: &Model) -> Vec<Vector6<f64>> {
+    fn raw_with(&self, state: &EffectState, geom: &Model) -> Vec<Vector6<f64>> {
         self.obs.iter().map(|o| residual(state, geom, o)).collect()
     }
 
@@ -219,7 +219,7 @@ pub(crate) fn balanced(p: &Problem, raw: &[Vector6<f64>]) -> (f64, f64) {
 /// dispersion to 1.
 pub(crate) fn fit_balanced(
     p: &mut Problem,
-    state: &State,
+    state: &EffectState,
     slots: &[Slot],
     prior: &[f64],
 ) -> Result<Fitted, ModelError> {
@@ -240,7 +240,7 @@ pub(crate) fn fit_balanced(
 /// The whitened training cost plus prior of `state` on `p`'s weights.
 pub(crate) fn cost_at(
     p: &Problem,
-    state: &State,
+    state: &EffectState,
     slots: &[Slot],
     prior: &[f64],
 ) -> Result<f64, ModelError> {
@@ -260,7 +260,7 @@ pub(crate) fn cost_at(
 
 /// Residuals and scaled Jacobian at a state.
 #[derive(Debug, Clone)]
-pub(crate) struct Lin {
+pub(crate) struct Linearization {
     /// Raw residual per observation.
     pub raw: Vec<Vector6<f64>>,
     /// Whitened residuals (all blocks).
@@ -272,7 +272,11 @@ pub(crate) struct Lin {
 }
 
 /// Residuals and finite-difference Jacobian of `slots` at `state` (columns in parallel).
-pub(crate) fn linearise(p: &Problem, state: &State, slots: &[Slot]) -> Result<Lin, ModelError> {
+pub(crate) fn linearise(
+    p: &Problem,
+    state: &EffectState,
+    slots: &[Slot],
+) -> Result<Linearization, ModelError> {
     let geom = state.geometry()?;
     let raw = p.raw_with(state, &geom);
     let jraw: Vec<Vec<Vector6<f64>>> = slots
@@ -315,7 +319,7 @@ pub(crate) fn linearise(p: &Problem, state: &State, slots: &[Slot]) -> Result<Li
         p.whiten(c, &mut col);
         jwhite.column_mut(k).copy_from_slice(&col);
     }
-    Ok(Lin {
+    Ok(Linearization {
         raw,
         white,
         jraw,
@@ -324,7 +328,11 @@ pub(crate) fn linearise(p: &Problem, state: &State, slots: &[Slot]) -> Result<Li
 }
 
 /// Normal equations `JᵀJ`, `Jᵀr` over whitened `rows` and columns `cols`.
-pub(crate) fn normal_eq(lin: &Lin, rows: &[usize], cols: &[usize]) -> (DMatrix<f64>, DVector<f64>) {
+pub(crate) fn normal_eq(
+    lin: &Linearization,
+    rows: &[usize],
+    cols: &[usize],
+) -> (DMatrix<f64>, DVector<f64>) {
     let k = cols.len();
     let mut a = DMatrix::zeros(k, k);
     let mut g = DVector::zeros(k);
@@ -393,11 +401,11 @@ pub(crate) fn pinv(a: &DMatrix<f64>) -> DMatrix<f64> {
 #[derive(Debug, Clone)]
 pub(crate) struct Fitted {
     /// The fitted state.
-    pub state: State,
+    pub state: EffectState,
     /// Whitened training cost.
     pub cost: f64,
     /// Linearisation at the solution.
-    pub lin: Lin,
+    pub lin: Linearization,
 }
 
 /// Standard deviation, in units of a slot's scale, of the weak prior that holds effect
@@ -423,13 +431,14 @@ pub(crate) fn prior(slots: &[Slot], own: &[Slot]) -> Vec<f64> {
 /// precisions `prior` (normalised units, centred on zero).
 pub(crate) fn fit(
     p: &Problem,
-    state: &State,
+    state: &EffectState,
     slots: &[Slot],
     prior: &[f64],
 ) -> Result<Fitted, ModelError> {
     let rows = p.white_rows(|b| b.train);
     let cols: Vec<usize> = (0..slots.len()).collect();
-    let norm = |st: &State| -> Vec<f64> { slots.iter().map(|s| st.get(*s) / s.scale()).collect() };
+    let norm =
+        |st: &EffectState| -> Vec<f64> { slots.iter().map(|s| st.get(*s) / s.scale()).collect() };
     let prior_cost = |u: &[f64]| u.iter().zip(prior).map(|(u, w)| w * u * u).sum::<f64>();
     let cost_of =
         |lin_white: &DVector<f64>| rows.iter().map(|&i| lin_white[i].powi(2)).sum::<f64>();

@@ -3,10 +3,21 @@
 
 use super::*;
 
+/// The observations of one configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct ConfigRows {
+    /// Indices of its observations.
+    pub rows: Vec<usize>,
+    /// Whether it is training data (else held out).
+    pub train: bool,
+    /// Its repeat cells (same load, direction and temperature): observation indices.
+    pub cells: Vec<Vec<usize>>,
+}
+
 /// Observations, blocks and folds: what does not change while effects are added.
 pub(super) struct Layout {
     pub(super) obs: Vec<Obs>,
-    pub(super) blocks: Vec<(Vec<usize>, bool, Vec<Vec<usize>>)>,
+    pub(super) blocks: Vec<ConfigRows>,
     pub(super) folds: Vec<Vec<usize>>,
     pub(super) holdout: bool,
     pub(super) per_kelvin: bool,
@@ -39,7 +50,7 @@ pub(super) fn layout(
 ) -> Result<Layout, DiscoverError> {
     let per_kelvin = data.rows.iter().all(|r| r.temperature_c.is_some());
     let mut obs = Vec::new();
-    let mut blocks: Vec<(Vec<usize>, bool, Vec<Vec<usize>>)> = Vec::new();
+    let mut blocks: Vec<ConfigRows> = Vec::new();
     let mut index: HashMap<String, usize> = HashMap::new();
     let mut cells: HashMap<(usize, u64, [i8; 6], i64), usize> = HashMap::new();
     for (set, train) in [(Some(data), true), (holdout, false)] {
@@ -57,7 +68,11 @@ pub(super) fn layout(
                 format!("holdout:{}", r.config_id)
             };
             let b = *index.entry(key).or_insert_with(|| {
-                blocks.push((Vec::new(), train, Vec::new()));
+                blocks.push(ConfigRows {
+                    rows: Vec::new(),
+                    train,
+                    cells: Vec::new(),
+                });
                 blocks.len() - 1
             });
             let i = obs.len();
@@ -69,20 +84,20 @@ pub(super) fn layout(
                 thermal,
                 meas: r.pose,
             });
-            blocks[b].0.push(i);
+            blocks[b].rows.push(i);
             let t = r
                 .temperature_c
                 .map_or(i64::MIN, |t| (t * 100.0).round() as i64);
             let c = *cells
                 .entry((b, r.load_n.to_bits(), r.direction, t))
                 .or_insert_with(|| {
-                    blocks[b].2.push(Vec::new());
-                    blocks[b].2.len() - 1
+                    blocks[b].cells.push(Vec::new());
+                    blocks[b].cells.len() - 1
                 });
-            blocks[b].2[c].push(i);
+            blocks[b].cells[c].push(i);
         }
     }
-    let n_train = blocks.iter().filter(|b| b.1).count();
+    let n_train = blocks.iter().filter(|b| b.train).count();
     if n_train < 8 {
         return Err(DiscoverError::Data(format!(
             "{n_train} configurations; discovery needs at least 8 distinct `config_id`s"
@@ -93,9 +108,9 @@ pub(super) fn layout(
         .resolver_arcmin
         .or_else(|| meta_noise.map(|n| n.resolver_arcmin))
         .unwrap_or(0.64);
-    let holdout_present = blocks.iter().any(|b| !b.1);
+    let holdout_present = blocks.iter().any(|b| !b.train);
     let folds = if holdout_present {
-        vec![(0..blocks.len()).filter(|&b| !blocks[b].1).collect()]
+        vec![(0..blocks.len()).filter(|&b| !blocks[b].train).collect()]
     } else {
         let mut ids: Vec<usize> = (0..blocks.len()).collect();
         ids.shuffle(&mut Pcg64::seed_from_u64(opts.seed ^ 0xd15c_0fe7));

@@ -41,8 +41,8 @@ use crate::calib::dataset::{Dataset, Effort};
 use crate::calib::fit::{CalibOptions, fit_base_only};
 use crate::model::{EffectRecord, Model, ModelError, frame_from_pose};
 use crate::stats;
-use effects::{BASE_ABSORBED, Effect, Kind, Obs, Slot, State};
-use fit::{Lin, Problem};
+use effects::{BASE_ABSORBED, Effect, EffectState, Kind, Obs, Slot};
+use fit::{Linearization, Problem};
 
 /// How to run a discovery.
 #[derive(Debug, Clone, PartialEq)]
@@ -132,7 +132,7 @@ fn model_slots(model: &Model) -> Vec<Slot> {
             }
         }
         if let Some(e) = d.joint_errors[j] {
-            let st = State::from_model(model, e.gear_ratio);
+            let st = EffectState::from_model(model, e.gear_ratio);
             s.extend(
                 (0..13)
                     .map(|k| Slot::JointErr(j, k))
@@ -204,13 +204,13 @@ pub fn discover(
         ..Default::default()
     };
     let m0 = fit_base_only(&m0, data, None, &copts)?;
-    let state0 = State::from_model(&m0, opts.gear_ratio);
+    let state0 = EffectState::from_model(&m0, opts.gear_ratio);
     let lay = layout(data, holdout, opts)?;
     let n_resid: usize = lay
         .blocks
         .iter()
-        .filter(|b| b.1)
-        .map(|b| 6 * b.0.len())
+        .filter(|b| b.train)
+        .map(|b| 6 * b.rows.len())
         .sum();
     let ln_n = (n_resid as f64).ln();
     let mut slots = model_slots(&m0);

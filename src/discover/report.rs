@@ -241,7 +241,7 @@ pub(super) fn regressor_name(e: &Effect, per_kelvin: bool) -> String {
 /// row), before and after, against its regressor.
 pub(super) fn evidence(
     p: &Problem,
-    state: &State,
+    state: &EffectState,
     e: &Effect,
     before: &[Vector6<f64>],
     after: &[Vector6<f64>],

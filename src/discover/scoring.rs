@@ -21,7 +21,7 @@ pub(super) fn train_rms_mm(p: &Problem, raw: &[Vector6<f64>]) -> f64 {
 }
 
 /// The lack-of-fit test at `lin`, and the training normal matrix it was computed with.
-pub(super) fn lack_of_fit(p: &Problem, lin: &Lin) -> (LackOfFit, DMatrix<f64>) {
+pub(super) fn lack_of_fit(p: &Problem, lin: &Linearization) -> (LackOfFit, DMatrix<f64>) {
     let (ss_pe, df_pe) = p.pure_error(&lin.raw);
     let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
     let train = p.white_rows(|b| b.train);
@@ -178,7 +178,12 @@ pub(super) struct FoldEqs {
     pub(super) g_train: DVector<f64>,
 }
 
-pub(super) fn fold_eqs(p: &Problem, lin: &Lin, folds: &[Vec<usize>], holdout: bool) -> FoldEqs {
+pub(super) fn fold_eqs(
+    p: &Problem,
+    lin: &Linearization,
+    folds: &[Vec<usize>],
+    holdout: bool,
+) -> FoldEqs {
     let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
     let rows = p.white_rows(|b| b.train);
     let (a_train, g_train) = fit::normal_eq(lin, &rows, &cols);
@@ -214,7 +219,7 @@ pub(super) fn fold_eqs(p: &Problem, lin: &Lin, folds: &[Vec<usize>], holdout: bo
 /// whitened cost, and the RMS position error over held-out rows (mm).
 pub(super) fn heldout(
     p: &Problem,
-    lin: &Lin,
+    lin: &Linearization,
     eqs: &FoldEqs,
     folds: &[Vec<usize>],
     cols: &[usize],
@@ -296,7 +301,7 @@ impl Paired {
 /// The lack-of-fit test on the noise model's own weights (dispersion 1), at `state`.
 pub(super) fn plain_lack_of_fit(
     p: &Problem,
-    state: &State,
+    state: &EffectState,
     slots: &[Slot],
 ) -> Result<(LackOfFit, DMatrix<f64>), DiscoverError> {
     let mut plain = p.clone();

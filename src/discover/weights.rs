@@ -4,7 +4,11 @@
 use super::*;
 
 /// Per-row pose sensitivity to each joint's torque, `∂pose/∂τ_j` (6 × 6).
-pub(super) fn torque_sensitivity(state: &State, geom: &Model, o: &Obs) -> nalgebra::Matrix6<f64> {
+pub(super) fn torque_sensitivity(
+    state: &EffectState,
+    geom: &Model,
+    o: &Obs,
+) -> nalgebra::Matrix6<f64> {
     let q = effects::link_angles(state, o);
     let mut j = geom.jacobian(&q);
     for k in 0..6 {
@@ -33,7 +37,7 @@ pub(super) fn torque_sensitivity(state: &State, geom: &Model, o: &Obs) -> nalgeb
 /// uncapped estimate would absorb any missing effect of the configuration).
 pub(super) fn problem(
     lay: &Layout,
-    state: &State,
+    state: &EffectState,
     n_params: usize,
 ) -> Result<(Problem, NoiseReport), DiscoverError> {
     let geom = state.geometry()?;
@@ -50,7 +54,7 @@ pub(super) fn problem(
     let mut samples = Vec::new();
     let mut cell_id = 0usize;
     let mut train_blocks = 0usize;
-    for (b, (_, train, cells)) in lay.blocks.iter().enumerate() {
+    for (b, layout::ConfigRows { train, cells, .. }) in lay.blocks.iter().enumerate() {
         if !train {
             continue;
         }
@@ -107,7 +111,7 @@ pub(super) fn problem(
 /// Expected held-out RMS position error from resolver, instrument and torque noise, mm.
 pub(super) fn noise_floor_mm(
     p: &Problem,
-    state: &State,
+    state: &EffectState,
     geom: &Model,
     folds: &[Vec<usize>],
     sr: f64,

@@ -1,4 +1,4 @@
-//! The model file format: [`ModelData`], read and written as YAML (serde_yaml).
+//! The model file format: [`ModelFile`], read and written as YAML (serde_yaml).
 //!
 //! This is the only place that knows the file layout; [`Model`](super::Model) validates
 //! what is read here. Unknown keys are rejected (`deny_unknown_fields`), so a typo never
@@ -43,7 +43,7 @@ fn default_gravity() -> [f64; 3] {
 /// from it to validate and evaluate it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ModelData {
+pub struct ModelFile {
     /// Free-text name of the robot this model describes.
     pub robot: String,
     /// Nominal standard DH table, joints 1…6 (a, d in metres; alpha, theta_offset in rad).

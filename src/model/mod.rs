@@ -1,6 +1,6 @@
 //! The PA10-6CE flexible geometric model: geometry, compliance, statics, kinematics.
 //!
-//! [`ModelData`] is the plain, serialisable description (what a model YAML file holds);
+//! [`ModelFile`] is the plain, serialisable description (what a model YAML file holds);
 //! [`Model`] is the validated, ready-to-evaluate form built from it. Every evaluation is a
 //! pure function of the model and its inputs, on fixed-size types, without allocation.
 //!
@@ -24,7 +24,7 @@ pub(crate) mod robot;
 mod statics;
 
 pub use compliance::Stiffness;
-pub use file::{EffectRecord, ModelData, PoseData};
+pub use file::{EffectRecord, ModelFile, PoseData};
 pub use ik::{IkError, IkSolutions, MAX_SOLUTIONS};
 pub use joint_error::{DEFAULT_GEAR_RATIO, JointError};
 pub use kinematics::{

@@ -8,7 +8,7 @@ use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use super::compliance::Stiffness;
-use super::file::{ModelData, PoseData};
+use super::file::{ModelFile, PoseData};
 use super::kinematics::Frame;
 use super::params::{
     self, HAYATI_JOINT, IDX_KCUB, IDX_KLIN, PARAM_COUNT, ParamVector, STIFF_JOINTS,
@@ -122,7 +122,7 @@ pub const MAX_BODIES: usize = 16;
 /// frames, and mass data. Cheap to evaluate; immutable (build a new one to change it).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Model {
-    data: ModelData,
+    data: ModelFile,
     pub(crate) joints: [JointGeom; 6],
     pub(crate) tool: Frame,
     pub(crate) tool_inv: Frame,
@@ -183,7 +183,7 @@ pub(crate) fn data_from_frame(f: &Frame) -> PoseData {
 
 impl Model {
     /// Validates `data` and builds the model. Every rule violated is reported by key.
-    pub fn new(data: ModelData) -> Result<Self, ModelError> {
+    pub fn new(data: ModelFile) -> Result<Self, ModelError> {
         validate(&data)?;
         let mut joints = [JointGeom {
             a: 0.0,
@@ -246,7 +246,7 @@ impl Model {
 
     /// Parses and validates a model from YAML text; `origin` names it in errors.
     pub fn from_yaml_str(text: &str, origin: &str) -> Result<Self, ModelError> {
-        let data: ModelData = serde_yaml::from_str(text).map_err(|e| ModelError::Parse {
+        let data: ModelFile = serde_yaml::from_str(text).map_err(|e| ModelError::Parse {
             origin: origin.to_string(),
             message: e.to_string(),
         })?;
@@ -279,7 +279,7 @@ impl Model {
     }
 
     /// The plain data this model was built from.
-    pub fn data(&self) -> &ModelData {
+    pub fn data(&self) -> &ModelFile {
         &self.data
     }
 
@@ -369,7 +369,7 @@ fn check_finite(key: String, v: f64, unit: &str) -> Result<(), ModelError> {
     }
 }
 
-fn validate(d: &ModelData) -> Result<(), ModelError> {
+fn validate(d: &ModelFile) -> Result<(), ModelError> {
     for (j, row) in d.dh.iter().enumerate() {
         let k = |f: &str| format!("dh[{j}].{f}");
         check_finite(k("a"), row.a, "m")?;

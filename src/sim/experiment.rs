@@ -417,8 +417,8 @@ pub enum Hidden {
 
 impl Hidden {
     /// Puts the effect into the truth's model data or extras.
-    pub fn apply(&self, d: &mut crate::model::ModelData, extras: &mut super::TruthExtras) {
-        fn je(d: &mut crate::model::ModelData, j: usize) -> &mut crate::model::JointError {
+    pub fn apply(&self, d: &mut crate::model::ModelFile, extras: &mut super::TruthExtras) {
+        fn je(d: &mut crate::model::ModelFile, j: usize) -> &mut crate::model::JointError {
             d.joint_errors[j].get_or_insert_with(Default::default)
         }
         match *self {

@@ -274,4 +274,3 @@ fn measure(a: &MeasureArgs) -> Result<()> {
     );
     Ok(())
 }
-
