@@ -69,6 +69,16 @@ fn wait_holding(ls: &mut Lockstep, timeout_s: f64) -> Value {
     status(ls)
 }
 
+/// Sends `reset` and runs until the daemon holds again (at most 2 s of simulated time).
+fn reset_until_holding(ls: &mut Lockstep) {
+    assert_eq!(ls.call(&json!({"cmd": "reset"}))["ok"], true);
+    assert!(
+        ls.run_while_not(2.0, |l| status(l)["state"] == "holding"),
+        "{}",
+        status(ls)
+    );
+}
+
 /// Tool targets in the instrument frame, inside the calibrated volume.
 fn targets(truth_base: &Frame) -> Vec<Frame> {
     let down = nalgebra::UnitQuaternion::from_axis_angle(
@@ -226,12 +236,7 @@ fn the_feedback_timeout_stops_the_arm_when_the_controller_goes_silent() {
     assert_eq!(status(&ls)["servo"], "Stopped", "{}", status(&ls));
     // the axis answers again: reset brings the arm back under control
     ls.servo.injected.mute_axis = None;
-    assert_eq!(ls.call(&json!({"cmd": "reset"}))["ok"], true);
-    assert!(
-        ls.run_while_not(2.0, |l| status(l)["state"] == "holding"),
-        "{}",
-        status(&ls)
-    );
+    reset_until_holding(&mut ls);
 }
 
 #[test]
@@ -256,12 +261,7 @@ fn a_silent_controller_fails_the_start_with_a_precise_error() {
     assert_eq!(st["state"], "fault", "{st}");
     // reset retries the start once the controller answers
     ls.servo.injected.mute_axis = None;
-    assert_eq!(ls.call(&json!({"cmd": "reset"}))["ok"], true);
-    assert!(
-        ls.run_while_not(2.0, |l| status(l)["state"] == "holding"),
-        "{}",
-        status(&ls)
-    );
+    reset_until_holding(&mut ls);
 }
 
 #[test]

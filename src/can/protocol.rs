@@ -121,8 +121,28 @@ pub fn check_rate(rate_hz: f64, bitrate: f64, limit: f64) -> Result<f64, String>
     Ok(load)
 }
 
+/// An enumeration with wire numbers, written once: the enum with its discriminants, and
+/// `ALL` / `from_wire` for decoding.
+macro_rules! wire_enum {
+    ($(#[$m:meta])* $vis:vis enum $name:ident { $($(#[$vm:meta])* $var:ident = $val:expr,)+ }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        #[repr(u8)]
+        $vis enum $name { $($(#[$vm])* $var = $val,)+ }
+
+        impl $name {
+            /// Every value, in wire order.
+            pub const ALL: &'static [$name] = &[$($name::$var),+];
+            /// The value whose wire number is `v`.
+            pub fn from_wire(v: u8) -> Option<Self> {
+                Self::ALL.iter().copied().find(|x| *x as u8 == v)
+            }
+        }
+    };
+}
+
+wire_enum! {
 /// CONTROL requests.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Request {
     /// STOPPED → BRAKE_RELEASE.
     ReleaseBrakes = 1,
@@ -135,9 +155,10 @@ pub enum Request {
     /// FAULT → STOPPED.
     ResetFault = 5,
 }
+}
 
+wire_enum! {
 /// Servo controller states.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ServoState {
     /// Servo off, brakes on (power-on).
     Stopped = 0,
@@ -148,9 +169,10 @@ pub enum ServoState {
     /// Servo off, brakes on, until RESET_FAULT.
     Fault = 3,
 }
+}
 
+wire_enum! {
 /// Fault codes of STATE.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Fault {
     /// No fault.
     None = 0,
@@ -165,9 +187,10 @@ pub enum Fault {
     /// The last request was not valid in the current state.
     Rejected = 5,
 }
+}
 
+wire_enum! {
 /// ERROR codes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ErrorCode {
     /// Command watchdog expired.
     Watchdog = 1,
@@ -181,6 +204,7 @@ pub enum ErrorCode {
     Limit = 5,
     /// A request was refused.
     Rejected = 6,
+}
 }
 
 /// COMMAND mode bits.
@@ -485,14 +509,7 @@ pub fn decode(frame: &Frame) -> Result<Message, DecodeError> {
     match id {
         ID_CONTROL => {
             let d = dlc(frame, 2)?;
-            let request = match d[0] {
-                1 => Request::ReleaseBrakes,
-                2 => Request::StartControl,
-                3 => Request::Stop,
-                4 => Request::Estop,
-                5 => Request::ResetFault,
-                v => return Err(range(id, "request", v)),
-            };
+            let request = Request::from_wire(d[0]).ok_or_else(|| range(id, "request", d[0]))?;
             Ok(Message::Control {
                 request,
                 watchdog_ms: d[1],
@@ -500,22 +517,8 @@ pub fn decode(frame: &Frame) -> Result<Message, DecodeError> {
         }
         ID_STATE => {
             let d = dlc(frame, 4)?;
-            let state = match d[0] {
-                0 => ServoState::Stopped,
-                1 => ServoState::BrakeRelease,
-                2 => ServoState::Control,
-                3 => ServoState::Fault,
-                v => return Err(range(id, "state", v)),
-            };
-            let fault = match d[1] {
-                0 => Fault::None,
-                1 => Fault::Watchdog,
-                2 => Fault::AxisFault,
-                3 => Fault::Limit,
-                4 => Fault::Bus,
-                5 => Fault::Rejected,
-                v => return Err(range(id, "fault", v)),
-            };
+            let state = ServoState::from_wire(d[0]).ok_or_else(|| range(id, "state", d[0]))?;
+            let fault = Fault::from_wire(d[1]).ok_or_else(|| range(id, "fault", d[1]))?;
             Ok(Message::State {
                 state,
                 fault,
@@ -530,15 +533,7 @@ pub fn decode(frame: &Frame) -> Result<Message, DecodeError> {
         }
         ID_ERROR => {
             let d = dlc(frame, 8)?;
-            let code = match d[0] {
-                1 => ErrorCode::Watchdog,
-                2 => ErrorCode::AxisTimeout,
-                3 => ErrorCode::CurrentOffset,
-                4 => ErrorCode::ResolverGlitch,
-                5 => ErrorCode::Limit,
-                6 => ErrorCode::Rejected,
-                v => return Err(range(id, "code", v)),
-            };
+            let code = ErrorCode::from_wire(d[0]).ok_or_else(|| range(id, "code", d[0]))?;
             if d[1] > 6 {
                 return Err(range(id, "axis", d[1]));
             }

@@ -464,7 +464,7 @@ impl EffectState {
             d.base_from_instrument.translation,
             d.base_from_instrument.quaternion,
         );
-        d.base_from_instrument = pose_data(&(base_correction(&self.base) * base));
+        d.base_from_instrument = (&(base_correction(&self.base) * base)).into();
         Model::new(d)
     }
 
@@ -480,7 +480,7 @@ impl EffectState {
             self.tool_offset[1],
             self.tool_offset[2],
         );
-        d.tool = pose_data(&(Frame::from_parts(off, Rotation3::identity()) * tool));
+        d.tool = (&(Frame::from_parts(off, Rotation3::identity()) * tool)).into();
         for j in 0..6 {
             d.stiffness[j] = (self.compliance[j] > 0.0).then(|| Stiffness {
                 klin: 1.0 / self.compliance[j],
@@ -496,15 +496,6 @@ impl EffectState {
             d.joint_errors[j] = (e != zero).then_some(e);
         }
         Model::new(d)
-    }
-}
-
-fn pose_data(f: &Frame) -> crate::model::PoseData {
-    let (translation, quaternion) = crate::model::pose_parts(f);
-    let s = if quaternion[0] < 0.0 { -1.0 } else { 1.0 };
-    crate::model::PoseData {
-        translation,
-        quaternion: quaternion.map(|x| s * x),
     }
 }
 

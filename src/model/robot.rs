@@ -173,11 +173,18 @@ pub(crate) fn frame_from_data(key: &str, p: &PoseData) -> Result<Frame, ModelErr
 
 /// Converts a frame to file pose data (quaternion with w ≥ 0).
 pub(crate) fn data_from_frame(f: &Frame) -> PoseData {
-    let q = UnitQuaternion::from_rotation_matrix(&f.rotation);
-    let s = if q.w < 0.0 { -1.0 } else { 1.0 };
-    PoseData {
-        translation: [f.translation.x, f.translation.y, f.translation.z],
-        quaternion: [s * q.w, s * q.i, s * q.j, s * q.k],
+    PoseData::from(f)
+}
+
+impl From<&Frame> for PoseData {
+    /// The frame's translation (m) and rotation as a unit quaternion with w ≥ 0.
+    fn from(f: &Frame) -> Self {
+        let q = UnitQuaternion::from_rotation_matrix(&f.rotation);
+        let s = if q.w < 0.0 { -1.0 } else { 1.0 };
+        PoseData {
+            translation: [f.translation.x, f.translation.y, f.translation.z],
+            quaternion: [s * q.w, s * q.i, s * q.j, s * q.k],
+        }
     }
 }
 

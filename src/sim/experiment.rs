@@ -126,13 +126,9 @@ pub fn grid_poses() -> Vec<(String, Frame)> {
 
 /// The sidecar of a simulated campaign: the instrument's name, the tool, the noise levels.
 pub fn sidecar(instrument: String, tool: &Frame, noise: &SimNoise) -> Meta {
-    let (translation, quaternion) = crate::model::pose_parts(tool);
     Meta {
         instrument: Some(instrument),
-        tool: Some(PoseData {
-            translation,
-            quaternion,
-        }),
+        tool: Some(PoseData::from(tool)),
         noise: Some(Noise {
             position_m: noise.position_m,
             resolver_arcmin: noise.resolver_rad / crate::accuracy::ARCMIN,

@@ -145,7 +145,7 @@ impl TrueRobot {
             mass: 2.4,
             com: [0.0, 0.0, 0.5 * tool_len],
         });
-        d.tool = pose_data(tool);
+        d.tool = PoseData::from(tool);
         let yaw = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
         let rot = UnitQuaternion::from_euler_angles(
             rng.random_range(-0.01..0.01),
@@ -159,7 +159,7 @@ impl TrueRobot {
             dist * ang.sin(),
             rng.random_range(-0.3..0.0),
         );
-        d.base_from_instrument = pose_data(&Frame::from_parts(t, rot.to_rotation_matrix()));
+        d.base_from_instrument = PoseData::from(&Frame::from_parts(t, rot.to_rotation_matrix()));
         let model = Model::new(d)?;
         let resolver = resolver_harmonics(&mut rng, &noise);
         Ok(Self {
@@ -351,12 +351,4 @@ fn resolver_harmonics(rng: &mut Pcg64, noise: &SimNoise) -> [[Harmonic; 3]; 6] {
         }
     }
     resolver
-}
-
-fn pose_data(f: &Frame) -> PoseData {
-    let (translation, quaternion) = crate::model::pose_parts(f);
-    PoseData {
-        translation,
-        quaternion,
-    }
 }
