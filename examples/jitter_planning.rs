@@ -101,7 +101,10 @@ fn main() {
             f(&c["jitter_us"]),
             f(&c["compute_us"]),
             c["overruns"],
-            st["state"],
+            match st["fault"].as_str() {
+                Some(f) => format!("{}: {f}", st["state"]),
+                None => st["state"].to_string(),
+            },
         );
     }
 }
