@@ -489,3 +489,61 @@ fn the_demo_gathers_through_the_daemon_calibrates_and_beats_the_nominal_model() 
         at90(0)
     );
 }
+
+#[test]
+fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
+    use pa10::daemon::control::CommandError;
+    use pa10::daemon::core::Command;
+    use pa10::daemon::motion::Move;
+    let _busy = busy();
+    let mut ls = lockstep("stale", &Model::nominal());
+    let plan = |ls: &Lockstep, q: [f64; 6]| {
+        let basis = ls.core.lock().unwrap().plan_basis().unwrap();
+        let mv = Move::joints(
+            &basis.model,
+            basis.from,
+            q,
+            &basis.speed,
+            &basis.acceleration,
+        )
+        .unwrap();
+        (Box::new(mv), basis)
+    };
+    let a = [0.1, 0.4, 1.6, 0.0, 1.1, 0.0];
+    // planned, then another client's move runs to completion: the setpoint moved
+    let (mv, basis) = plan(&ls, a);
+    assert_eq!(
+        ls.call(&json!({"cmd": "move_joints", "q": [0.0, 0.5, 1.6, 0.0, 1.1, 0.0]}))["ok"],
+        true
+    );
+    assert_eq!(wait_holding(&mut ls, 5.0)["state"], "holding");
+    let r = ls.core.lock().unwrap().submit(Command::Start { mv, basis });
+    assert_eq!(r, Err(CommandError::Stale));
+    // planned, then the model was replaced: refused too
+    let (mv, basis) = plan(&ls, a);
+    let model = std::sync::Arc::new(Model::nominal());
+    ls.core
+        .lock()
+        .unwrap()
+        .submit(Command::LoadModel(model))
+        .unwrap();
+    let r = ls.core.lock().unwrap().submit(Command::Start { mv, basis });
+    assert_eq!(r, Err(CommandError::Stale));
+    // planned from what is current: accepted
+    let (mv, basis) = plan(&ls, a);
+    assert_eq!(
+        ls.core.lock().unwrap().submit(Command::Start { mv, basis }),
+        Ok(())
+    );
+    assert_eq!(wait_holding(&mut ls, 5.0)["state"], "holding");
+    // a basis is refused outright while a move runs
+    assert_eq!(
+        ls.call(&json!({"cmd": "move_joints", "q": [0.0, 0.4, 1.6, 0.0, 1.1, 0.0]}))["ok"],
+        true
+    );
+    ls.run_for(0.01);
+    assert!(matches!(
+        ls.core.lock().unwrap().plan_basis(),
+        Err(CommandError::Busy)
+    ));
+}
