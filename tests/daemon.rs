@@ -469,7 +469,6 @@ fn a_storm_of_malformed_frames_does_not_crash_the_daemon() {
 
 #[test]
 fn the_demo_gathers_through_the_daemon_calibrates_and_beats_the_nominal_model() {
-    let _serial = serial();
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
         .args(["demo", "--quick", "--json", "--seed", "2"])
         .output()

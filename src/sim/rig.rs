@@ -202,6 +202,21 @@ impl Lockstep {
         pred(self)
     }
 
+    /// Runs until the servo controller is in control mode (the daemon ready for moves), at
+    /// most `timeout_s` of simulated time; the start-up failure otherwise.
+    pub fn run_until_ready(&mut self, timeout_s: f64) -> Result<(), String> {
+        self.run_while_not(timeout_s, |l| {
+            let c = lock(&l.core);
+            c.is_ready() || c.startup_failure().is_some()
+        });
+        let c = lock(&self.core);
+        match (c.is_ready(), c.startup_failure()) {
+            (true, _) => Ok(()),
+            (false, Some(e)) => Err(e.to_string()),
+            (false, None) => Err(format!("not in control mode within {timeout_s} s")),
+        }
+    }
+
     /// Runs until simulated time `end` (s).
     pub fn run_until(&mut self, end: f64) {
         loop {

@@ -5,12 +5,10 @@
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::net::UnixStream;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use pa10::daemon::core::Core;
 use serde_json::{Value, json};
 
 /// Where the daemon listens.
@@ -74,10 +72,20 @@ fn send(c: &Conn, req: &Value) -> Result<Value> {
     serde_json::from_str(&line).context("the daemon's answer is not JSON")
 }
 
-/// A way to send the daemon one JSON request and get its answer.
+/// A way to send the daemon one JSON request and get its answer, and the clock the daemon
+/// runs on (real time, or the simulated time of `pa10 demo`).
 pub trait Api {
     /// Sends `req`, returns the daemon's answer (any `ok`).
     fn call(&mut self, req: Value) -> Result<Value>;
+    /// Lets `d` pass on the daemon's clock.
+    fn pause(&mut self, d: Duration) {
+        std::thread::sleep(d);
+    }
+    /// The daemon's clock, s (any origin).
+    fn clock_s(&self) -> f64 {
+        static START: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
+        START.get_or_init(Instant::now).elapsed().as_secs_f64()
+    }
 }
 
 /// The daemon behind its Unix socket.
@@ -89,12 +97,19 @@ impl Api for Socket {
     }
 }
 
-/// A daemon running in this process (the demo): the same request handler as the socket's.
-pub struct InProcess(pub Arc<Mutex<Core>>);
+/// A daemon core and the simulated arm in simulated time, in this process (the demo): the
+/// same request handler as the socket's; pauses run the simulation.
+pub struct Simulated(pub pa10::sim::rig::Lockstep);
 
-impl Api for InProcess {
+impl Api for Simulated {
     fn call(&mut self, req: Value) -> Result<Value> {
-        Ok(pa10::daemon::api::handle(&self.0, &req.to_string()))
+        Ok(self.0.call(&req))
+    }
+    fn pause(&mut self, d: Duration) {
+        self.0.run_for(d.as_secs_f64());
+    }
+    fn clock_s(&self) -> f64 {
+        self.0.now()
     }
 }
 
@@ -143,16 +158,16 @@ pub fn status(c: &Conn) -> Result<()> {
 /// Polls `status` until the arm holds; returns that answer. A fault, or no rest within
 /// `timeout`, is an error.
 pub fn wait_settled(api: &mut dyn Api, timeout: Duration) -> Result<Value> {
-    let end = Instant::now() + timeout;
+    let end = api.clock_s() + timeout.as_secs_f64();
     loop {
         let v = checked(api, json!({"cmd": "status"}))?;
         match v["status"]["state"].as_str() {
             Some("holding") => return Ok(v),
             Some("fault") => bail!("the move ended in a fault: {}", v["status"]["fault"]),
-            _ if Instant::now() > end => {
+            _ if api.clock_s() > end => {
                 bail!("the move did not settle within {} s", timeout.as_secs())
             }
-            _ => std::thread::sleep(Duration::from_millis(10)),
+            _ => api.pause(Duration::from_millis(10)),
         }
     }
 }

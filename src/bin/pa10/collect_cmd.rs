@@ -5,7 +5,7 @@
 
 use std::io::BufRead;
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
@@ -40,16 +40,17 @@ pub fn arr6(v: &Value) -> Result<[f64; 6]> {
 /// move or a load change the servo and the compensation need a few loop time constants.
 pub fn wait_still(api: &mut dyn Api, min: Duration, max: Duration) -> Result<()> {
     const COUNT: f64 = std::f64::consts::TAU / (16384.0 * 50.0);
-    let t = Instant::now();
+    let t = api.clock_s();
     let (mut last, _) = sample(api)?;
     let mut still = 0;
     loop {
-        std::thread::sleep(Duration::from_millis(10));
+        api.pause(Duration::from_millis(10));
         let (q, _) = sample(api)?;
         let step = (0..6).map(|j| (q[j] - last[j]).abs()).fold(0.0, f64::max);
         still = if step <= 1.5 * COUNT { still + 1 } else { 0 };
         last = q;
-        if (t.elapsed() >= min && still >= 3) || t.elapsed() >= max {
+        let elapsed = api.clock_s() - t;
+        if (elapsed >= min.as_secs_f64() && still >= 3) || elapsed >= max.as_secs_f64() {
             return Ok(());
         }
     }

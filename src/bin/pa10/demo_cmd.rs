@@ -1,6 +1,5 @@
-//! `pa10 demo`: the whole story on a simulated PA10, no hardware. Starts the daemon core on
-//! the simulated backend (virtual CAN bus, simulated servo controller with a hidden true
-//! robot), gathers the paper's calibration set through the daemon's API and the CAN
+//! `pa10 demo`: the whole story on a simulated PA10, no hardware. Runs the daemon core with
+//! the simulated servo controller (a hidden true robot) in simulated time, gathers the paper's calibration set through the daemon's API and the CAN
 //! protocol (the simulator's ground truth plays the CMM), calibrates, loads the models into
 //! the running daemon and commands novel poses under loads up to 90 N, judged by the truth.
 
@@ -13,17 +12,16 @@ use indicatif::{ProgressBar, ProgressStyle};
 use pa10::calib::dataset::{Dataset, Effort, Meta, Row};
 use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
 use pa10::daemon::config::Config;
-use pa10::daemon::runtime::Daemon;
+
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, pose, sidecar};
-use pa10::sim::rig::SimulatedArm;
-use pa10::sim::servo::{ServoSim, SharedServo};
+use pa10::sim::rig::Lockstep;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64;
 use serde::Serialize;
 use serde_json::json;
 
-use crate::client_cmd::{Api, InProcess, checked};
+use crate::client_cmd::{Api, Simulated, checked};
 use crate::collect_cmd::{move_wait, sample, wait_still};
 
 /// Arguments of `pa10 demo`.
@@ -101,14 +99,9 @@ fn config_text(dir: &Path, seed: u64) -> String {
         .replace("log_level: info", "log_level: warn")
 }
 
-/// The simulated controller (its ground truth is the demo's instrument).
-fn lock(sim: &SharedServo) -> Result<std::sync::MutexGuard<'_, ServoSim>> {
-    sim.lock()
-        .map_err(|_| anyhow::anyhow!("simulator lock poisoned"))
-}
-
-fn set_load(api: &mut dyn Api, sim: &SharedServo, n: f64) -> Result<()> {
-    lock(sim)?.set_load(n);
+/// Hangs `n` newtons on the simulated arm and tells the daemon.
+fn set_load(api: &mut Simulated, n: f64) -> Result<()> {
+    api.0.servo.set_load(n);
     checked(api, json!({"cmd": "set_payload", "newtons": n}))?;
     Ok(())
 }
@@ -173,14 +166,16 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.set_message("starting pa10d on the simulated PA10");
-    let arm = SimulatedArm::from_config(&loaded)?;
-    let mut d = Daemon::start(&loaded, arm.host())?;
-    let sim = arm.servo().clone();
-    let mut api = InProcess(d.core.clone());
+    // The daemon's core and the simulated arm in simulated time: deterministic, and as fast
+    // as the machine computes (the real-time daemon is `pa10d`; tests/vcan runs it on a kernel).
+    let mut api = Simulated(Lockstep::from_config(&loaded)?);
+    api.0
+        .run_until_ready(5.0)
+        .map_err(|e| anyhow::anyhow!("the simulated servo controller: {e}"))?;
     let mut rng = Pcg64::seed_from_u64(a.seed ^ 0xde70);
-    let truth = lock(&sim)?.truth().clone();
-    let cmm = |sim: &SharedServo, rng: &mut Pcg64| -> Result<Frame> {
-        Ok(truth.observe_pose(&lock(sim)?.true_tool_pose(), rng))
+    let truth = api.0.servo.truth().clone();
+    let cmm = |api: &Simulated, rng: &mut Pcg64| -> Frame {
+        truth.observe_pose(&api.0.servo.true_tool_pose(), rng)
     };
 
     // 1. Gather the calibration set through the daemon.
@@ -202,7 +197,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
             CAL_LOADS.iter().rev().copied().collect()
         };
         for load in loads {
-            set_load(&mut api, &sim, load)?;
+            set_load(&mut api, load)?;
             wait_still(&mut api, SETTLE_MIN, SETTLE_MAX)?;
             for _ in 0..a.repeats {
                 let (q_motor, current) = sample(&mut api)?;
@@ -211,12 +206,12 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
                     load_n: load,
                     q: q_motor,
                     effort: Effort::Current(current),
-                    pose: cmm(&sim, &mut rng)?,
+                    pose: cmm(&api, &mut rng),
                     direction: [0; 6],
                     temperature_c: None,
                     line: 0,
                 });
-                std::thread::sleep(Duration::from_millis(10));
+                api.pause(Duration::from_millis(10));
             }
             bar.inc(1);
         }
@@ -320,9 +315,9 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
             };
             for l in order {
                 let load = VAL_LOADS[l];
-                set_load(&mut api, &sim, load)?;
+                set_load(&mut api, load)?;
                 wait_still(&mut api, SETTLE_MIN, SETTLE_MAX)?;
-                let got = truth_base.inverse() * lock(&sim)?.true_tool_pose();
+                let got = truth_base.inverse() * api.0.servo.true_tool_pose();
                 let e = pose_error(target, &got);
                 errs[mi][l].push((
                     e.fixed_rows::<3>(0).norm() * 1e3,
@@ -349,8 +344,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
             (name.to_string(), cells)
         })
         .collect();
-    set_load(&mut api, &sim, 0.0)?;
-    d.shutdown();
+    set_load(&mut api, 0.0)?;
     let t_val = t0.elapsed().as_secs_f64();
     tracing::debug!(t_gather, t_calib, t_val, "demo phases (s since start)");
     if std::env::var_os("PA10_DEMO_TIMING").is_some() {
