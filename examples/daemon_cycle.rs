@@ -8,36 +8,23 @@
 use std::time::Duration;
 
 use pa10::daemon::api::handle;
-use pa10::daemon::config::Config;
-use pa10::daemon::runtime::Daemon;
 use serde_json::{Value, json};
+
+mod common;
 
 fn main() {
     let secs: f64 = std::env::args()
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(10.0);
-    let base = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
-    let text = std::fs::read_to_string(base.join("sim.yaml")).expect("config/sim.yaml");
     let max_rate = (0.9 * 1e6 / pa10::can::protocol::cycle_bits_worst() as f64).floor();
     println!(
         "| rate | cycles | overruns | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | bus load |"
     );
     println!("|---|---|---|---|---|---|");
     for rate in [500.0, max_rate] {
-        let sock = std::env::temp_dir().join(format!("pa10-cycle-{}.sock", std::process::id()));
-        let t = text
-            .replace("rate_hz: 500", &format!("rate_hz: {rate}"))
-            .replace(
-                "socket: /tmp/pa10d-sim.sock",
-                &format!("socket: {}", sock.display()),
-            );
-        let cfg = Config::parse(&t, "bench")
-            .expect("config")
-            .validate(&base)
-            .expect("valid");
-        let arm = pa10::sim::rig::SimulatedArm::from_config(&cfg).expect("simulated arm");
-        let d = Daemon::start(&cfg, arm.host()).expect("daemon");
+        let cfg = common::sim_config(rate, "cycle");
+        let (_arm, d) = common::start(&cfg);
         let a = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
         let b = [0.3, 0.6, 1.3, 0.4, 0.8, 0.5];
         let end = std::time::Instant::now() + Duration::from_secs_f64(secs);
@@ -51,14 +38,7 @@ fn main() {
         }
         let st: Value = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
         let c = &st["cycle"];
-        let f = |v: &Value| {
-            format!(
-                "{:.0} / {:.0} / {:.0}",
-                v[0].as_f64().unwrap_or(0.0),
-                v[1].as_f64().unwrap_or(0.0),
-                v[2].as_f64().unwrap_or(0.0)
-            )
-        };
+        let f = common::triple;
         println!(
             "| {rate} Hz | {} | {} | {} | {} | {:.1} % |",
             c["cycles"],

@@ -14,33 +14,22 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
 use pa10::daemon::api::handle;
-use pa10::daemon::config::Config;
-use pa10::daemon::runtime::Daemon;
 use serde_json::{Value, json};
+
+mod common;
 
 fn main() {
     let secs: f64 = std::env::args()
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(10.0);
-    let base = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
-    let text = std::fs::read_to_string(base.join("sim.yaml")).expect("config/sim.yaml");
     println!(
         "| client | moves planned and started | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | overruns | state at the end |"
     );
     println!("|---|---|---|---|---|---|");
     for planning in [false, true] {
-        let sock = std::env::temp_dir().join(format!("pa10-jitter-{}.sock", std::process::id()));
-        let t = text.replace(
-            "socket: /tmp/pa10d-sim.sock",
-            &format!("socket: {}", sock.display()),
-        );
-        let cfg = Config::parse(&t, "bench")
-            .expect("config")
-            .validate(&base)
-            .expect("valid");
-        let arm = pa10::sim::rig::SimulatedArm::from_config(&cfg).expect("simulated arm");
-        let d = Daemon::start(&cfg, arm.host()).expect("daemon");
+        let cfg = common::sim_config(500.0, "jitter");
+        let (_arm, d) = common::start(&cfg);
         let stop = Arc::new(AtomicBool::new(false));
         let count = Arc::new(AtomicU64::new(0));
         let client = planning.then(|| {
@@ -82,14 +71,7 @@ fn main() {
         }
         let st: Value = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
         let c = &st["cycle"];
-        let f = |v: &Value| {
-            format!(
-                "{:.0} / {:.0} / {:.0}",
-                v[0].as_f64().unwrap_or(0.0),
-                v[1].as_f64().unwrap_or(0.0),
-                v[2].as_f64().unwrap_or(0.0)
-            )
-        };
+        let f = common::triple;
         println!(
             "| {} | {} | {} | {} | {} | {} |",
             if planning {
