@@ -97,6 +97,18 @@ pub fn pose(p: [f64; 3], tilt_x: f64, tilt_y: f64, yaw: f64) -> Frame {
     Frame::from_parts(Translation3::new(p[0], p[1], p[2]), r.to_rotation_matrix())
 }
 
+/// A novel validation pose: position uniform in the box `lo`…`hi` (m, robot base frame),
+/// tilts uniform in ±0.3 rad about x and y, yaw in ±0.6 rad ([`pose`]'s family).
+pub fn random_pose(rng: &mut Pcg64, lo: [f64; 3], hi: [f64; 3]) -> Frame {
+    let p: [f64; 3] = std::array::from_fn(|k| rng.random_range(lo[k]..hi[k]));
+    pose(
+        p,
+        rng.random_range(-0.3..0.3),
+        rng.random_range(-0.3..0.3),
+        rng.random_range(-0.6..0.6),
+    )
+}
+
 /// Grid coordinate of index 0…2 along an axis.
 fn grid(i: usize, lo: f64, hi: f64) -> f64 {
     lo + (hi - lo) * i as f64 / 2.0
@@ -214,17 +226,7 @@ pub fn paper_campaign(spec: &CampaignSpec) -> Result<Campaign, CampaignError> {
     let mut val = Dataset::default();
     let mut placed = 0;
     while placed < 10 {
-        let p = [
-            rng.random_range(0.35..0.80),
-            rng.random_range(-0.3..0.3),
-            rng.random_range(-0.15..0.35),
-        ];
-        let target = pose(
-            p,
-            rng.random_range(-0.3..0.3),
-            rng.random_range(-0.3..0.3),
-            rng.random_range(-0.6..0.6),
-        );
+        let target = random_pose(&mut rng, [0.35, -0.3, -0.15], [0.80, 0.3, 0.35]);
         let id = format!("v{placed}");
         let Ok(q) = command(&id, &target) else {
             continue;

@@ -14,9 +14,9 @@ use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
 use pa10::daemon::config::Config;
 
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
-use pa10::sim::experiment::{CampaignSpec, grid_poses, pose, sidecar};
+use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
 use pa10::sim::rig::Lockstep;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use serde::Serialize;
 use serde_json::json;
@@ -257,18 +257,9 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
     // 3. Validation: novel poses (instrument frame), every model loaded into the daemon.
     let mut targets: Vec<Frame> = Vec::new();
     while targets.len() < n_val {
-        let p = [
-            rng.random_range(0.40..0.75),
-            rng.random_range(-0.25..0.25),
-            rng.random_range(-0.10..0.30),
-        ];
-        let t = pose(
-            p,
-            rng.random_range(-0.3..0.3),
-            rng.random_range(-0.3..0.3),
-            rng.random_range(-0.6..0.6),
-        );
-        let reference = [p[1].atan2(p[0]), 0.3, 1.6, 0.0, 1.2, 0.0];
+        let t = random_pose(&mut rng, [0.40, -0.25, -0.10], [0.75, 0.25, 0.30]);
+        let p = t.translation.vector;
+        let reference = [p.y.atan2(p.x), 0.3, 1.6, 0.0, 1.2, 0.0];
         if nominal.ik_nearest(&t, &reference).is_ok() {
             targets.push(placed.base_from_instrument().inverse() * t);
         }
