@@ -172,6 +172,13 @@ fn bad_requests_are_refused_and_change_nothing_and_estop_needs_reset() {
             json!({"cmd": "load_model", "path": "/nonexistent.yaml"}),
             "nonexistent",
         ),
+        // unknown fields are refused on every command, unit ones included
+        (json!({"cmd": "estop", "why": 1}), "unknown field `why`"),
+        (json!({"cmd": "stop", "speed": 0}), "unknown field `speed`"),
+        (json!({"cmd": "reset", "all": true}), "unknown field `all`"),
+        (json!({"cmd": "status", "x": 1}), "unknown field `x`"),
+        // an unknown command is named, but never echoed at length
+        (json!({"cmd": "x".repeat(100_000)}), "bad request"),
     ] {
         let line = if let Value::String(s) = &req {
             s.clone()
@@ -180,6 +187,10 @@ fn bad_requests_are_refused_and_change_nothing_and_estop_needs_reset() {
         };
         let r = pa10::daemon::api::handle(&ls.core, &line);
         assert_eq!(r["ok"], false, "{req}: {r}");
+        assert!(
+            r.to_string().len() < 1000,
+            "an answer echoes at most a few hundred bytes"
+        );
         assert!(r["error"].as_str().unwrap().contains(msg), "{req}: {r}");
     }
     let after = status(&ls);
@@ -545,4 +556,54 @@ fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
         ls.core.lock().unwrap().plan_basis(),
         Err(CommandError::Busy)
     ));
+}
+
+/// The socket server itself, with a plain `std` client: line limits and non-UTF-8 input.
+#[test]
+fn the_socket_refuses_overlong_and_non_utf8_lines_with_an_answer() {
+    use std::io::{BufRead, BufReader, Read, Write};
+    let _busy = busy();
+    let ls = lockstep("sock", &Model::nominal());
+    let dir = temp_dir("sock-api");
+    let path = dir.join("api.sock");
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .unwrap();
+    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+    let (p, core) = (path.clone(), ls.core.clone());
+    let server = rt.spawn(async move { pa10::daemon::api::serve(&p, 0o600, core, stop_rx).await });
+    let end = Instant::now() + Duration::from_secs(5);
+    while !path.exists() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let answer = |s: &mut std::os::unix::net::UnixStream| -> Value {
+        let mut line = String::new();
+        BufReader::new(s.try_clone().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        serde_json::from_str(&line).unwrap()
+    };
+    // not UTF-8: an answer, and the connection stays usable
+    let mut s = std::os::unix::net::UnixStream::connect(&path).unwrap();
+    s.write_all(b"\xff\xfe{}\n").unwrap();
+    let a = answer(&mut s);
+    assert!(a["error"].as_str().unwrap().contains("not UTF-8"), "{a}");
+    s.write_all(b"{\"cmd\":\"status\"}\n").unwrap();
+    assert_eq!(answer(&mut s)["ok"], true);
+    // 100 kB without a newline: refused with a reason, then closed
+    s.write_all(&vec![b'x'; 100_000]).unwrap();
+    let a = answer(&mut s);
+    assert!(a["error"].as_str().unwrap().contains("65536 bytes"), "{a}");
+    let mut rest = Vec::new();
+    s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
+    // closed after the refusal (a reset when the rest of the line was still unread)
+    match s.read_to_end(&mut rest) {
+        Ok(n) => assert_eq!(n, 0),
+        Err(e) => assert_eq!(e.kind(), std::io::ErrorKind::ConnectionReset),
+    }
+    stop_tx.send(true).unwrap();
+    rt.block_on(server).unwrap().unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
 }

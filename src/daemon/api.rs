@@ -24,7 +24,7 @@ use crate::model::{Model, frame_from_pose};
 #[serde(tag = "cmd", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Request {
     /// The daemon's state.
-    Status,
+    Status {},
     /// A joint move to `q` (link angles, rad).
     MoveJoints {
         /// Target, rad.
@@ -38,11 +38,11 @@ pub enum Request {
         quaternion: [f64; 4],
     },
     /// Controlled stop.
-    Stop,
+    Stop {},
     /// Immediate servo stop and brakes.
-    Estop,
+    Estop {},
     /// Clears a fault.
-    Reset,
+    Reset {},
     /// Sets the payload hung at the tool, N.
     SetPayload {
         /// Newtons.
@@ -60,8 +60,23 @@ pub enum Request {
     },
 }
 
+/// The longest error text an answer carries, bytes: a hostile request is never echoed whole.
+const MAX_ERROR_BYTES: usize = 300;
+
+/// `s` cut to at most `max` bytes on a character boundary, with `…` when cut.
+pub fn truncate(s: &str, max: usize) -> String {
+    if s.len() <= max {
+        return s.to_string();
+    }
+    let mut end = max;
+    while !s.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!("{}…", &s[..end])
+}
+
 fn err(msg: impl std::fmt::Display) -> Value {
-    json!({ "ok": false, "error": msg.to_string() })
+    json!({ "ok": false, "error": truncate(&msg.to_string(), MAX_ERROR_BYTES) })
 }
 
 fn answer(r: Result<Value, CommandError>) -> Value {
@@ -98,7 +113,7 @@ pub fn handle(core: &Mutex<Core>, line: &str) -> Value {
         Err(e) => return err(format!("bad request: {e}")),
     };
     match req {
-        Request::Status | Request::Subscribe { .. } => {
+        Request::Status {} | Request::Subscribe { .. } => {
             let c = lock(core);
             if !c.is_ready() && c.startup_failure().is_none() {
                 return err(CommandError::NotReady("starting".into()));
@@ -124,9 +139,9 @@ pub fn handle(core: &Mutex<Core>, line: &str) -> Value {
                 Move::cartesian(&b.model, b.from, target, &b.speed, &b.acceleration)
             }))
         }
-        Request::Stop => submit(core, Command::Stop),
-        Request::Estop => submit(core, Command::Estop),
-        Request::Reset => submit(core, Command::Reset),
+        Request::Stop {} => submit(core, Command::Stop),
+        Request::Estop {} => submit(core, Command::Estop),
+        Request::Reset {} => submit(core, Command::Reset),
         Request::SetPayload { newtons } => submit(core, Command::SetPayload(newtons)),
         Request::LoadModel { path } => match Model::load(&path) {
             Ok(m) => submit(core, Command::LoadModel(Arc::new(m))),
@@ -154,55 +169,142 @@ pub async fn serve(
             c = listener.accept() => c?,
             _ = stop.changed() => break,
         };
-        let core = core.clone();
-        tokio::spawn(async move {
-            let (r, mut w) = conn.into_split();
-            let mut lines = BufReader::new(r).lines();
-            while let Ok(Some(line)) = lines.next_line().await {
-                if let Ok(Request::Subscribe { rate_hz }) = serde_json::from_str::<Request>(&line) {
-                    if !(0.1..=100.0).contains(&rate_hz) {
-                        let _ = w
-                            .write_all(
-                                format!("{}\n", err("rate_hz must be within 0.1…100 Hz"))
-                                    .as_bytes(),
-                            )
-                            .await;
-                        continue;
-                    }
-                    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
-                    loop {
-                        tick.tick().await;
-                        let st = json!({ "ok": true, "status": lock(&core).status() });
-                        if w.write_all(format!("{st}\n").as_bytes()).await.is_err() {
-                            return;
-                        }
-                    }
-                }
-                let cmd = serde_json::from_str::<Value>(&line)
-                    .ok()
-                    .and_then(|v| v["cmd"].as_str().map(str::to_string))
-                    .unwrap_or_default();
-                let span = tracing::info_span!("request", cmd = %cmd);
-                let resp = span.in_scope(|| {
-                    let r = handle(&core, &line);
-                    if r["ok"] == true {
-                        // status is polled (often at 100 Hz): keep it out of the journal
-                        if cmd == "status" {
-                            tracing::debug!("done");
-                        } else {
-                            tracing::info!("done");
-                        }
-                    } else {
-                        tracing::warn!(error = %r["error"], "refused");
-                    }
-                    r
-                });
-                if w.write_all(format!("{resp}\n").as_bytes()).await.is_err() {
-                    return;
-                }
-            }
-        });
+        tokio::spawn(connection(conn, core.clone()));
     }
     let _ = std::fs::remove_file(path);
     Ok(())
+}
+
+/// The longest request line, bytes; a longer one is refused and the connection closed.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// How long a connection may stay silent (or take to send one line), s.
+pub const IDLE_TIMEOUT_S: u64 = 300;
+
+/// How long one request may take to be answered, s (planning, reading a model file).
+pub const REQUEST_TIMEOUT_S: u64 = 10;
+
+/// What reading one request line gave.
+#[derive(Debug, PartialEq, Eq)]
+enum LineRead {
+    /// A line (without its newline) is in the buffer.
+    Line,
+    /// The client closed the connection.
+    Eof,
+    /// More than [`MAX_LINE_BYTES`] without a newline.
+    TooLong,
+}
+
+/// Reads one line into `buf` (cleared first), never buffering more than [`MAX_LINE_BYTES`].
+async fn read_line<R: tokio::io::AsyncBufRead + Unpin>(
+    r: &mut R,
+    buf: &mut Vec<u8>,
+) -> std::io::Result<LineRead> {
+    buf.clear();
+    loop {
+        let avail = r.fill_buf().await?;
+        if avail.is_empty() {
+            return Ok(if buf.is_empty() {
+                LineRead::Eof
+            } else {
+                LineRead::Line
+            });
+        }
+        let (take, done) = match avail.iter().position(|&b| b == b'\n') {
+            Some(i) => (i, true),
+            None => (avail.len(), false),
+        };
+        if buf.len() + take > MAX_LINE_BYTES {
+            let n = if done { take + 1 } else { take };
+            r.consume(n);
+            return Ok(LineRead::TooLong);
+        }
+        buf.extend_from_slice(&avail[..take]);
+        r.consume(if done { take + 1 } else { take });
+        if done {
+            return Ok(LineRead::Line);
+        }
+    }
+}
+
+/// One client connection: lines in, answers out, until the client leaves, falls silent for
+/// [`IDLE_TIMEOUT_S`] or sends a line longer than [`MAX_LINE_BYTES`].
+async fn connection(conn: tokio::net::UnixStream, core: Arc<Mutex<Core>>) {
+    let (r, mut w) = conn.into_split();
+    let mut r = BufReader::new(r);
+    let mut buf = Vec::with_capacity(1024);
+    let idle = Duration::from_secs(IDLE_TIMEOUT_S);
+    loop {
+        let read = match tokio::time::timeout(idle, read_line(&mut r, &mut buf)).await {
+            Err(_) => {
+                let e = err(format!(
+                    "no complete request for {IDLE_TIMEOUT_S} s; closing"
+                ));
+                let _ = w.write_all(format!("{e}\n").as_bytes()).await;
+                return;
+            }
+            Ok(Err(_)) | Ok(Ok(LineRead::Eof)) => return,
+            Ok(Ok(read)) => read,
+        };
+        if read == LineRead::TooLong {
+            let e = err(format!(
+                "request longer than {MAX_LINE_BYTES} bytes without a newline; closing"
+            ));
+            let _ = w.write_all(format!("{e}\n").as_bytes()).await;
+            return;
+        }
+        let Ok(line) = std::str::from_utf8(&buf) else {
+            let e = err("bad request: not UTF-8 text");
+            if w.write_all(format!("{e}\n").as_bytes()).await.is_err() {
+                return;
+            }
+            continue;
+        };
+        if let Ok(Request::Subscribe { rate_hz }) = serde_json::from_str::<Request>(line) {
+            if !(0.1..=100.0).contains(&rate_hz) {
+                let e = err("rate_hz must be within 0.1…100 Hz");
+                if w.write_all(format!("{e}\n").as_bytes()).await.is_err() {
+                    return;
+                }
+                continue;
+            }
+            let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
+            loop {
+                tick.tick().await;
+                let st = json!({ "ok": true, "status": lock(&core).status() });
+                if w.write_all(format!("{st}\n").as_bytes()).await.is_err() {
+                    return;
+                }
+            }
+        }
+        let cmd = serde_json::from_str::<Value>(line)
+            .ok()
+            .and_then(|v| v["cmd"].as_str().map(|c| truncate(c, 32)))
+            .unwrap_or_default();
+        let span = tracing::info_span!("request", cmd = %cmd);
+        // Off the runtime's thread: planning takes about a millisecond, reading a model file
+        // is blocking IO.
+        let (c, l) = (core.clone(), line.to_string());
+        let work = tokio::task::spawn_blocking(move || handle(&c, &l));
+        let resp = match tokio::time::timeout(Duration::from_secs(REQUEST_TIMEOUT_S), work).await {
+            Ok(Ok(r)) => r,
+            Ok(Err(_)) => err("internal error while handling the request"),
+            Err(_) => err(format!("no answer within {REQUEST_TIMEOUT_S} s")),
+        };
+        span.in_scope(|| {
+            if resp["ok"] == true {
+                // status is polled (often at 100 Hz): keep it out of the journal
+                if cmd == "status" {
+                    tracing::debug!("done");
+                } else {
+                    tracing::info!("done");
+                }
+            } else {
+                tracing::warn!(error = %resp["error"], "refused");
+            }
+        });
+        if w.write_all(format!("{resp}\n").as_bytes()).await.is_err() {
+            return;
+        }
+    }
 }
