@@ -593,8 +593,13 @@ fn the_socket_refuses_overlong_and_non_utf8_lines_with_an_answer() {
     s.write_all(b"{\"cmd\":\"status\"}\n").unwrap();
     assert_eq!(answer(&mut s)["ok"], true);
     // 100 kB without a newline: refused with a reason, then closed
-    s.write_all(&vec![b'x'; 100_000]).unwrap();
+    // (written from another thread: the server may close before all of it is sent)
+    let mut w = s.try_clone().unwrap();
+    let writer = std::thread::spawn(move || {
+        let _ = w.write_all(&vec![b'x'; 100_000]);
+    });
     let a = answer(&mut s);
+    writer.join().unwrap();
     assert!(a["error"].as_str().unwrap().contains("65536 bytes"), "{a}");
     let mut rest = Vec::new();
     s.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
@@ -605,5 +610,54 @@ fn the_socket_refuses_overlong_and_non_utf8_lines_with_an_answer() {
     }
     stop_tx.send(true).unwrap();
     rt.block_on(server).unwrap().unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn load_model_reads_only_regular_files_inside_the_model_dir_and_never_echoes_them() {
+    let _busy = busy();
+    let dir = temp_dir("models");
+    let loaded = Config::load(&config(&dir, &Model::nominal())).unwrap();
+    let mut ls = Lockstep::from_config(&loaded).unwrap();
+    ls.run_until_ready(1.0).unwrap();
+    let load = |ls: &Lockstep, p: &str| ls.call(&json!({"cmd": "load_model", "path": p}));
+    let secret = "root:x:0:0:root:/root:/bin/bash";
+    std::fs::write(dir.join("passwd.yaml"), format!("{secret}\n")).unwrap();
+    std::fs::write(dir.join("big.yaml"), vec![b'#'; 2 << 20]).unwrap();
+    std::os::unix::fs::symlink("/etc/hostname", dir.join("out.yaml")).unwrap();
+    let fifo = dir.join("fifo.yaml");
+    let have_fifo = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success());
+    let mut cases = vec![
+        ("/etc/passwd".to_string(), "outside the model directory"),
+        (
+            "../../../etc/passwd".to_string(),
+            "outside the model directory",
+        ),
+        ("out.yaml".to_string(), "outside the model directory"),
+        ("passwd.yaml".to_string(), "passwd.yaml"),
+        ("big.yaml".to_string(), "more than the 1048576"),
+        ("missing.yaml".to_string(), "missing.yaml"),
+    ];
+    if have_fifo {
+        cases.push(("fifo.yaml".to_string(), "not a regular file"));
+    }
+    for (path, why) in &cases {
+        let r = load(&ls, path);
+        assert_eq!(r["ok"], false, "{path}: {r}");
+        let e = r["error"].as_str().unwrap();
+        assert!(e.contains(why), "{path}: {e}");
+        assert!(
+            !e.contains("root:x") && !e.contains("/bin/bash"),
+            "{path}: leaks {e}"
+        );
+    }
+    // the model next to the configuration loads, by a relative or an absolute path
+    assert_eq!(load(&ls, "model.yaml")["ok"], true);
+    let abs = dir.join("model.yaml");
+    assert_eq!(load(&ls, abs.to_str().unwrap())["ok"], true);
+    assert_eq!(status(&ls)["state"], "holding");
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -83,6 +83,43 @@ fn answer(r: Result<Value, CommandError>) -> Value {
     r.unwrap_or_else(err)
 }
 
+/// The largest model file `load_model` reads, bytes.
+pub const MAX_MODEL_BYTES: u64 = 1 << 20;
+
+/// Reads a model file for `load_model`: `path` (relative ones in `dir`) must resolve, symlinks
+/// followed, to a regular file inside `dir` of at most [`MAX_MODEL_BYTES`]; errors name the
+/// path, the key and the line, never the content. Called outside the control lock.
+pub fn read_model(dir: &Path, path: &Path) -> Result<Model, String> {
+    use std::io::Read;
+    let full = dir.join(path);
+    let shown = full.display();
+    let real = full.canonicalize().map_err(|e| format!("{shown}: {e}"))?;
+    let dir_c = dir
+        .canonicalize()
+        .map_err(|e| format!("the model directory {}: {e}", dir.display()))?;
+    if !real.starts_with(&dir_c) {
+        return Err(format!(
+            "{shown} is outside the model directory {} (api.model_dir)",
+            dir_c.display()
+        ));
+    }
+    let meta = std::fs::metadata(&real).map_err(|e| format!("{shown}: {e}"))?;
+    if !meta.is_file() {
+        return Err(format!("{shown} is not a regular file"));
+    }
+    if meta.len() > MAX_MODEL_BYTES {
+        return Err(format!(
+            "{shown}: {} bytes, more than the {MAX_MODEL_BYTES} a model file may have",
+            meta.len()
+        ));
+    }
+    let mut text = String::new();
+    std::fs::File::open(&real)
+        .and_then(|f| f.take(MAX_MODEL_BYTES).read_to_string(&mut text))
+        .map_err(|e| format!("{shown}: {e}"))?;
+    Model::from_yaml_str(&text, &shown.to_string()).map_err(|e| e.to_string())
+}
+
 /// Plans a move outside the lock (≈ 1 ms for a Cartesian one) from a basis taken under it,
 /// then hands it over; refused if the setpoint or the model changed in between.
 fn plan_and_start(
@@ -143,10 +180,13 @@ pub fn handle(core: &Mutex<Core>, line: &str) -> Value {
         Request::Estop {} => submit(core, Command::Estop),
         Request::Reset {} => submit(core, Command::Reset),
         Request::SetPayload { newtons } => submit(core, Command::SetPayload(newtons)),
-        Request::LoadModel { path } => match Model::load(&path) {
-            Ok(m) => submit(core, Command::LoadModel(Arc::new(m))),
-            Err(e) => err(e),
-        },
+        Request::LoadModel { path } => {
+            let dir = lock(core).model_dir().to_path_buf();
+            match read_model(&dir, Path::new(&path)) {
+                Ok(m) => submit(core, Command::LoadModel(Arc::new(m))),
+                Err(e) => err(e),
+            }
+        }
     }
 }
 

@@ -127,6 +127,10 @@ pub struct ApiConfig {
     /// Socket file mode, octal text (e.g. "0660").
     #[serde(default = "default_mode")]
     pub mode: String,
+    /// The only directory `load_model` reads from (relative paths are taken in it; symlinks
+    /// out of it are refused).
+    #[serde(default = "default_model_dir")]
+    pub model_dir: PathBuf,
 }
 
 fn default_socket() -> PathBuf {
@@ -134,6 +138,9 @@ fn default_socket() -> PathBuf {
 }
 fn default_mode() -> String {
     "0660".into()
+}
+fn default_model_dir() -> PathBuf {
+    PathBuf::from("/etc/pa10d")
 }
 
 /// The simulated robot behind the virtual backend.
@@ -190,6 +197,7 @@ fn default_api() -> ApiConfig {
     ApiConfig {
         socket: default_socket(),
         mode: default_mode(),
+        model_dir: default_model_dir(),
     }
 }
 fn default_log() -> String {
@@ -247,6 +255,8 @@ pub struct Loaded {
     pub bus_load: f64,
     /// The socket mode, parsed.
     pub socket_mode: u32,
+    /// `api.model_dir`, resolved against the configuration's folder.
+    pub model_dir: PathBuf,
 }
 
 impl Config {
@@ -413,12 +423,14 @@ impl Config {
             }
             _ => {}
         }
+        let model_dir = base.join(&self.api.model_dir);
         Ok(Loaded {
             config: self,
             model_path,
             model,
             bus_load,
             socket_mode,
+            model_dir,
         })
     }
 }

@@ -125,6 +125,8 @@ pub struct Core {
     restarting: bool,
     /// Cycles started.
     syncs: u64,
+    /// The only directory `load_model` reads from.
+    model_dir: std::path::PathBuf,
 }
 
 impl Core {
@@ -154,6 +156,7 @@ impl Core {
             stop_sent: false,
             restarting: false,
             syncs: 0,
+            model_dir: std::path::PathBuf::from("/etc/pa10d"),
         }
     }
 
@@ -174,7 +177,14 @@ impl Core {
         };
         let wd = c.limits.feedback_timeout_ms.round().clamp(1.0, 255.0) as u8;
         let link = LinkConfig::new(params.period_s, wd);
-        Self::new(loaded.model.clone(), params, link, loaded.bus_load)
+        let mut core = Self::new(loaded.model.clone(), params, link, loaded.bus_load);
+        core.model_dir = loaded.model_dir.clone();
+        core
+    }
+
+    /// The only directory `load_model` reads from.
+    pub fn model_dir(&self) -> &std::path::Path {
+        &self.model_dir
     }
 
     /// Starts the session at `now` (s).

@@ -81,6 +81,34 @@ pub enum ModelError {
     },
 }
 
+/// A parser message with every double-quoted value replaced by `"…"` and cut to 300 bytes:
+/// it names keys, lines and columns, never the file's content (a wrong path must not print
+/// a secret file back).
+fn without_values(message: &str) -> String {
+    let mut out = String::with_capacity(message.len().min(320));
+    let mut chars = message.chars();
+    while let Some(c) = chars.next() {
+        if c == '"' {
+            let mut escaped = false;
+            for d in chars.by_ref() {
+                match d {
+                    '\\' if !escaped => escaped = true,
+                    '"' if !escaped => break,
+                    _ => escaped = false,
+                }
+            }
+            out.push_str("\"…\"");
+        } else {
+            out.push(c);
+        }
+        if out.len() > 300 {
+            out.push('…');
+            break;
+        }
+    }
+    out
+}
+
 fn invalid(key: impl Into<String>, reason: impl Into<String>) -> ModelError {
     ModelError::Invalid {
         key: key.into(),
@@ -255,7 +283,7 @@ impl Model {
     pub fn from_yaml_str(text: &str, origin: &str) -> Result<Self, ModelError> {
         let data: ModelFile = serde_yaml::from_str(text).map_err(|e| ModelError::Parse {
             origin: origin.to_string(),
-            message: e.to_string(),
+            message: without_values(&e.to_string()),
         })?;
         Self::new(data)
     }
