@@ -398,6 +398,23 @@ fn sim_measure_then_calibrate_end_to_end() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("bad.csv:8: column `load_n`"), "{err}");
     assert!(!fresh.exists());
+    // without its sidecar the fit cannot place the tool: the error says what is missing
+    let bare = dir.join("bare.csv");
+    std::fs::copy(dir.join("cal.csv"), &bare).unwrap();
+    let o = pa10(&[
+        "calibrate",
+        "--data",
+        bare.to_str().unwrap(),
+        "--out",
+        fresh.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("no sidecar") && err.contains("`tool`") && !err.contains("User("),
+        "{err}"
+    );
+    assert!(!fresh.exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

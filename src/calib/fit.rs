@@ -784,7 +784,28 @@ pub fn calibrate(
             .flatten()
             .min_by(|a, b| a.1.total_cmp(&b.1))
             .ok_or_else(|| {
-                CalibError::Failed(format!("no start converged: {}", reasons.join("; ")))
+                // the optimiser's own words for "the residual function gave up"
+                let mut reasons: Vec<String> = reasons
+                    .iter()
+                    .map(|r| {
+                        r.replace(
+                            "User(\"residuals\")",
+                            "the model could not be evaluated where the optimiser went (a parameter left its valid range)",
+                        )
+                    })
+                    .collect();
+                reasons.dedup();
+                let mut msg = format!("no start converged: {}", reasons.join("; "));
+                if data.meta.is_none() {
+                    msg.push_str(
+                        ". The dataset has no sidecar (<name>.meta.yaml beside the CSV): without it \
+                         the tool is the model's (the nominal model's is the flange itself, which \
+                         a measured tooling ball is not). The sidecar must give `tool` (flange → measured point: translation m, \
+                         quaternion w, x, y, z) and should give `noise` (position_m, \
+                         resolver_arcmin) and `instrument`; see docs/calibration.md",
+                    );
+                }
+                CalibError::Failed(msg)
             })?;
         Ok((s, cost, psi, start_costs))
     };
