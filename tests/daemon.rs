@@ -336,6 +336,18 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     let v: Value = serde_json::from_str(&line).unwrap();
     assert_eq!(v["ok"], true);
     assert_eq!(v["status"]["servo"], "Control");
+    // a second daemon on the same configuration refuses to start and names the first
+    let second = std::process::Command::new(env!("CARGO_BIN_EXE_pa10d"))
+        .args(["--config", cfg.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(second.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&second.stderr);
+    assert!(
+        err.contains(&format!("another pa10d (pid {},", child.0.id())),
+        "{err}"
+    );
+    assert!(sock.exists(), "the first daemon's socket is untouched");
     // the pa10 client wraps every call
     let pa10 = |args: &[&str]| {
         std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
@@ -659,5 +671,21 @@ fn load_model_reads_only_regular_files_inside_the_model_dir_and_never_echoes_the
     let abs = dir.join("model.yaml");
     assert_eq!(load(&ls, abs.to_str().unwrap())["ok"], true);
     assert_eq!(status(&ls)["state"], "holding");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_second_daemon_cannot_take_a_live_socket() {
+    let dir = temp_dir("claim");
+    let sock = dir.join("api.sock");
+    let first = pa10::daemon::api::SocketLock::claim(&sock).unwrap();
+    let e = pa10::daemon::api::SocketLock::claim(&sock).unwrap_err();
+    assert!(
+        e.contains(&format!("pid {}", std::process::id())) && e.contains("another pa10d"),
+        "{e}"
+    );
+    drop(first);
+    // released with its owner: the next claim succeeds
+    assert!(pa10::daemon::api::SocketLock::claim(&sock).is_ok());
     std::fs::remove_dir_all(&dir).unwrap();
 }

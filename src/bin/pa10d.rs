@@ -99,6 +99,10 @@ fn run(path: &Path) -> Result<()> {
         .with_writer(std::io::stderr)
         .init();
     tracing::info!(config = %path.display(), rate_hz = loaded.config.control.rate_hz, "starting");
+    // One daemon per socket: claimed before the bus is touched.
+    let _claim = pa10::daemon::api::SocketLock::claim(&loaded.config.api.socket)
+        .map_err(anyhow::Error::msg)
+        .context("claiming the API socket")?;
     // The simulated arm (virtual backend) lives as long as the daemon runs on it.
     let (mut daemon, _arm) = match loaded.config.bus.backend {
         Backend::Virtual => {

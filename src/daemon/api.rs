@@ -190,7 +190,8 @@ pub fn handle(core: &Mutex<Core>, line: &str) -> Value {
     }
 }
 
-/// Serves clients on `path` (created with `mode`) until `stop` turns true.
+/// Serves clients on `path` (created with `mode`) until `stop` turns true. Claim the path
+/// first ([`SocketLock::claim`]): a stale socket file is replaced, a live one must not be.
 pub async fn serve(
     path: &Path,
     mode: u32,
@@ -213,6 +214,49 @@ pub async fn serve(
     }
     let _ = std::fs::remove_file(path);
     Ok(())
+}
+
+/// The exclusive claim of one daemon on its socket path: a lock file beside the socket
+/// (`<socket>.lock`, holding the owner's PID) locked for the daemon's lifetime.
+#[derive(Debug)]
+pub struct SocketLock {
+    _file: std::fs::File,
+    path: std::path::PathBuf,
+}
+
+impl SocketLock {
+    /// Claims `socket`; refused, naming the owner's PID, when another process holds it.
+    pub fn claim(socket: &Path) -> Result<Self, String> {
+        use std::io::{Read, Seek, Write};
+        let path = socket.with_extension("lock");
+        let mut file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        if file.try_lock().is_err() {
+            let mut pid = String::new();
+            let _ = file.read_to_string(&mut pid);
+            return Err(format!(
+                "{} is served by another pa10d (pid {}, holding {}); stop it first",
+                socket.display(),
+                pid.trim(),
+                path.display()
+            ));
+        }
+        file.set_len(0)
+            .and_then(|()| file.rewind())
+            .and_then(|()| write!(file, "{}", std::process::id()))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(Self { _file: file, path })
+    }
+
+    /// The lock file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
 }
 
 /// The longest request line, bytes; a longer one is refused and the connection closed.
