@@ -572,7 +572,7 @@ fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
 
 /// The socket server itself, with a plain `std` client: line limits and non-UTF-8 input.
 #[test]
-fn the_socket_refuses_overlong_and_non_utf8_lines_with_an_answer() {
+fn the_socket_refuses_overlong_and_non_utf8_lines_and_extra_clients_with_an_answer() {
     use std::io::{BufRead, BufReader, Read, Write};
     let _busy = busy();
     let ls = lockstep("sock", &Model::nominal());
@@ -585,7 +585,10 @@ fn the_socket_refuses_overlong_and_non_utf8_lines_with_an_answer() {
         .unwrap();
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
     let (p, core) = (path.clone(), ls.core.clone());
-    let server = rt.spawn(async move { pa10::daemon::api::serve(&p, 0o600, core, stop_rx).await });
+    let health = std::sync::Arc::new(pa10::daemon::api::ApiHealth::default());
+    let h = health.clone();
+    let server =
+        rt.spawn(async move { pa10::daemon::api::serve(&p, 0o600, 2, core, h, stop_rx).await });
     let end = Instant::now() + Duration::from_secs(5);
     while !path.exists() && Instant::now() < end {
         std::thread::sleep(Duration::from_millis(5));
@@ -604,6 +607,30 @@ fn the_socket_refuses_overlong_and_non_utf8_lines_with_an_answer() {
     assert!(a["error"].as_str().unwrap().contains("not UTF-8"), "{a}");
     s.write_all(b"{\"cmd\":\"status\"}\n").unwrap();
     assert_eq!(answer(&mut s)["ok"], true);
+    // api.max_clients = 2: a third client is told why and closed; a freed place is reused
+    let mut s2 = std::os::unix::net::UnixStream::connect(&path).unwrap();
+    s2.write_all(b"{\"cmd\":\"status\"}\n").unwrap();
+    assert_eq!(answer(&mut s2)["ok"], true);
+    let mut s3 = std::os::unix::net::UnixStream::connect(&path).unwrap();
+    let a = answer(&mut s3);
+    assert!(
+        a["error"].as_str().unwrap().contains("too many clients (2"),
+        "{a}"
+    );
+    assert_eq!(
+        health
+            .refused_clients
+            .load(std::sync::atomic::Ordering::Relaxed),
+        1
+    );
+    drop(s2);
+    let end = Instant::now() + Duration::from_secs(5);
+    while health.clients.load(std::sync::atomic::Ordering::Relaxed) > 1 && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let mut s4 = std::os::unix::net::UnixStream::connect(&path).unwrap();
+    s4.write_all(b"{\"cmd\":\"status\"}\n").unwrap();
+    assert_eq!(answer(&mut s4)["ok"], true);
     // 100 kB without a newline: refused with a reason, then closed
     // (written from another thread: the server may close before all of it is sent)
     let mut w = s.try_clone().unwrap();

@@ -135,26 +135,54 @@ fn run(path: &Path) -> Result<()> {
     let result = rt.block_on(async move {
         let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
         let api_shared = shared.clone();
-        let api = tokio::spawn(async move { pa10::daemon::api::serve(&socket, mode, api_shared, stop_rx).await });
-        let _ = sd_notify::notify(&[NotifyState::Ready, NotifyState::Status("control loop running")]);
-        // systemd watchdog: ping only while the loop advances and is not faulted
+        let health = std::sync::Arc::new(pa10::daemon::api::ApiHealth::default());
+        let api_health = health.clone();
+        let max_clients = loaded.config.api.max_clients;
+        let mut api = tokio::spawn(async move {
+            pa10::daemon::api::serve(&socket, mode, max_clients, api_shared, api_health, stop_rx)
+                .await
+        });
+        let _ = sd_notify::notify(&[
+            NotifyState::Ready,
+            NotifyState::Status("control loop running"),
+        ]);
+        // systemd watchdog: ping only while the loop advances and the API accepts clients
         let wd = sd_notify::watchdog_enabled();
         let mut last_cycles = 0u64;
         let mut tick = tokio::time::interval(wd.map(|d| d / 2).unwrap_or(Duration::from_secs(1)));
-        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).context("SIGTERM handler")?;
+        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+            .context("SIGTERM handler")?;
         loop {
             tokio::select! {
                 _ = tick.tick() => {
                     let st = lock(&shared).status();
                     let progressed = st.cycle.cycles > last_cycles;
                     last_cycles = st.cycle.cycles;
-                    if wd.is_some() && progressed {
+                    let api_ok = !health.accept_failing.load(std::sync::atomic::Ordering::Relaxed);
+                    if wd.is_some() && progressed && api_ok {
                         let _ = sd_notify::notify(&[NotifyState::Watchdog]);
                     }
-                    let _ = sd_notify::notify(&[NotifyState::Status(&format!("{} ({} cycles)", st.state, st.cycle.cycles))]);
+                    let clients = health.clients.load(std::sync::atomic::Ordering::Relaxed);
+                    let _ = sd_notify::notify(&[NotifyState::Status(&format!(
+                        "{} ({} cycles, {clients} clients{})",
+                        st.state,
+                        st.cycle.cycles,
+                        if api_ok { "" } else { ", API failing to accept" }
+                    ))]);
                     if !progressed && last_cycles > 0 {
                         tracing::error!("control loop stalled");
                     }
+                }
+                r = &mut api => {
+                    // the API ended without being asked: nothing can reach the arm any more,
+                    // so stop it and exit with the reason (systemd restarts the service)
+                    let why = match r {
+                        Ok(Ok(())) => "the API server ended".to_string(),
+                        Ok(Err(e)) => format!("the API server failed: {e}"),
+                        Err(e) => format!("the API task failed: {e}"),
+                    };
+                    tracing::error!(reason = %why, "stopping the arm");
+                    return Err(anyhow::anyhow!(why));
                 }
                 _ = tokio::signal::ctrl_c() => break,
                 _ = term.recv() => break,

@@ -5,6 +5,7 @@
 //! is validated and a refused one leaves the robot as it was.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -190,12 +191,19 @@ pub fn handle(core: &Mutex<Core>, line: &str) -> Value {
     }
 }
 
-/// Serves clients on `path` (created with `mode`) until `stop` turns true. Claim the path
-/// first ([`SocketLock::claim`]): a stale socket file is replaced, a live one must not be.
+/// Serves clients on `path` (created with `mode`) until `stop` turns true, at most
+/// `max_clients` at once (one more gets a refusal line and is closed). Claim the path first
+/// ([`SocketLock::claim`]): a stale socket file is replaced, a live one must not be.
+///
+/// Accepting never gives up: an error (e.g. EMFILE when the process is out of descriptors)
+/// is logged once per burst and retried after a back-off of 10 ms doubling to 1 s, and the
+/// count is in [`ApiHealth`].
 pub async fn serve(
     path: &Path,
     mode: u32,
+    max_clients: usize,
     core: Arc<Mutex<Core>>,
+    health: Arc<ApiHealth>,
     mut stop: tokio::sync::watch::Receiver<bool>,
 ) -> std::io::Result<()> {
     let _ = std::fs::remove_file(path);
@@ -205,15 +213,61 @@ pub async fn serve(
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode))?;
     }
+    let mut backoff = Duration::from_millis(10);
     loop {
-        let (conn, _) = tokio::select! {
-            c = listener.accept() => c?,
+        let accepted = tokio::select! {
+            c = listener.accept() => c,
             _ = stop.changed() => break,
         };
-        tokio::spawn(connection(conn, core.clone()));
+        let conn = match accepted {
+            Ok((conn, _)) => {
+                if backoff > Duration::from_millis(10) {
+                    tracing::info!("accepting clients again");
+                }
+                backoff = Duration::from_millis(10);
+                health.accept_failing.store(false, Ordering::Relaxed);
+                conn
+            }
+            Err(e) => {
+                health.accept_errors.fetch_add(1, Ordering::Relaxed);
+                if !health.accept_failing.swap(true, Ordering::Relaxed) {
+                    tracing::error!(error = %e, "accepting a client failed; retrying with back-off");
+                }
+                tokio::time::sleep(backoff).await;
+                backoff = (backoff * 2).min(Duration::from_secs(1));
+                continue;
+            }
+        };
+        if health.clients.load(Ordering::Relaxed) >= max_clients {
+            health.refused_clients.fetch_add(1, Ordering::Relaxed);
+            let e = err(format!(
+                "too many clients ({max_clients} connected, api.max_clients); try again later"
+            ));
+            let _ = conn.try_write(format!("{e}\n").as_bytes());
+            continue;
+        }
+        health.clients.fetch_add(1, Ordering::Relaxed);
+        let (core, health) = (core.clone(), health.clone());
+        tokio::spawn(async move {
+            connection(conn, core).await;
+            health.clients.fetch_sub(1, Ordering::Relaxed);
+        });
     }
     let _ = std::fs::remove_file(path);
     Ok(())
+}
+
+/// How the API is doing, for `pa10d`'s systemd watchdog and logs.
+#[derive(Debug, Default)]
+pub struct ApiHealth {
+    /// Clients connected now.
+    pub clients: AtomicUsize,
+    /// Clients refused for `api.max_clients`.
+    pub refused_clients: AtomicU64,
+    /// `accept()` errors so far.
+    pub accept_errors: AtomicU64,
+    /// The last `accept()` failed (cleared by the next success).
+    pub accept_failing: AtomicBool,
 }
 
 /// The exclusive claim of one daemon on its socket path: a lock file beside the socket

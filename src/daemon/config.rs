@@ -131,6 +131,9 @@ pub struct ApiConfig {
     /// out of it are refused).
     #[serde(default = "default_model_dir")]
     pub model_dir: PathBuf,
+    /// Clients connected at once (1…1000); one more is refused with a reason.
+    #[serde(default = "default_max_clients")]
+    pub max_clients: usize,
 }
 
 fn default_socket() -> PathBuf {
@@ -138,6 +141,9 @@ fn default_socket() -> PathBuf {
 }
 fn default_mode() -> String {
     "0660".into()
+}
+fn default_max_clients() -> usize {
+    64
 }
 fn default_model_dir() -> PathBuf {
     PathBuf::from("/etc/pa10d")
@@ -198,6 +204,7 @@ fn default_api() -> ApiConfig {
         socket: default_socket(),
         mode: default_mode(),
         model_dir: default_model_dir(),
+        max_clients: default_max_clients(),
     }
 }
 fn default_log() -> String {
@@ -386,6 +393,12 @@ impl Config {
                     2.0 * period_ms,
                     l.feedback_timeout_ms
                 ),
+            ));
+        }
+        if !(1..=1000).contains(&c.api.max_clients) {
+            return Err(invalid(
+                "api.max_clients",
+                format!("must be within 1…1000, got {}", c.api.max_clients),
             ));
         }
         let socket_mode = u32::from_str_radix(c.api.mode.trim_start_matches("0o"), 8)
