@@ -9,6 +9,7 @@ mod control;
 mod daemon;
 mod dbc;
 mod discover;
+mod hostile;
 mod independent;
 mod model;
 mod model_file;
