@@ -372,6 +372,8 @@ async fn connection(conn: tokio::net::UnixStream, core: Arc<Mutex<Core>>) {
     let mut r = BufReader::new(r);
     let mut buf = Vec::with_capacity(1024);
     let idle = Duration::from_secs(IDLE_TIMEOUT_S);
+    let mut limiter = LogLimiter::default();
+    let started = std::time::Instant::now();
     loop {
         let read = match tokio::time::timeout(idle, read_line(&mut r, &mut buf)).await {
             Err(_) => {
@@ -438,11 +440,113 @@ async fn connection(conn: tokio::net::UnixStream, core: Arc<Mutex<Core>>) {
                     tracing::info!("done");
                 }
             } else {
-                tracing::warn!(error = %resp["error"], "refused");
+                let kind = if cmd.is_empty() {
+                    "malformed"
+                } else {
+                    cmd.as_str()
+                };
+                match limiter.check(kind, started.elapsed().as_secs_f64()) {
+                    LogVerdict::Log { suppressed: 0 } => {
+                        tracing::warn!(error = %resp["error"], "refused")
+                    }
+                    LogVerdict::Log { suppressed } => tracing::warn!(
+                        error = %resp["error"],
+                        suppressed,
+                        "refused (and {suppressed} more like it on this connection, not logged)"
+                    ),
+                    LogVerdict::Suppress => {}
+                }
             }
         });
         if w.write_all(format!("{resp}\n").as_bytes()).await.is_err() {
             return;
         }
+    }
+}
+
+/// Refusals logged per connection, per kind of request and per [`LOG_WINDOW_S`].
+pub const LOG_PER_WINDOW: u32 = 5;
+/// The rate limiter's window, s.
+pub const LOG_WINDOW_S: f64 = 10.0;
+/// Kinds tracked per connection; further kinds share one entry.
+const LOG_KINDS: usize = 16;
+
+/// What to do with one refusal's log line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LogVerdict {
+    /// Log it, saying how many like it were suppressed since the last logged one.
+    Log {
+        /// Refusals of this kind not logged since.
+        suppressed: u64,
+    },
+    /// Do not log it (counted).
+    Suppress,
+}
+
+/// A per-connection log rate limiter: at most [`LOG_PER_WINDOW`] refusals of a kind per
+/// [`LOG_WINDOW_S`]; the first one logged after a quiet spell carries the count of those
+/// suppressed. Pure: the caller passes the time.
+#[derive(Debug, Default)]
+pub struct LogLimiter {
+    kinds: Vec<(String, f64, u32, u64)>,
+}
+
+impl LogLimiter {
+    /// The verdict for a refusal of `kind` at `now_s` (s, any origin, non-decreasing).
+    pub fn check(&mut self, kind: &str, now_s: f64) -> LogVerdict {
+        let kind = truncate(kind, 32);
+        let i = match self.kinds.iter().position(|k| k.0 == kind) {
+            Some(i) => i,
+            None if self.kinds.len() < LOG_KINDS => {
+                self.kinds.push((kind, now_s, 0, 0));
+                self.kinds.len() - 1
+            }
+            None => LOG_KINDS - 1,
+        };
+        let (_, start, logged, suppressed) = &mut self.kinds[i];
+        if now_s - *start >= LOG_WINDOW_S {
+            *start = now_s;
+            *logged = 0;
+        }
+        if *logged < LOG_PER_WINDOW {
+            *logged += 1;
+            LogVerdict::Log {
+                suppressed: std::mem::take(suppressed),
+            }
+        } else {
+            *suppressed += 1;
+            LogVerdict::Suppress
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refusals_are_logged_a_few_per_window_and_the_rest_counted() {
+        let mut l = LogLimiter::default();
+        let mut logged = 0;
+        for k in 0..1000 {
+            if l.check("move_joints", k as f64 * 0.001) != LogVerdict::Suppress {
+                logged += 1;
+            }
+        }
+        assert_eq!(logged, LOG_PER_WINDOW);
+        // another kind has its own budget
+        assert_eq!(l.check("estop", 1.0), LogVerdict::Log { suppressed: 0 });
+        // the next window logs again and says how many were dropped
+        assert_eq!(
+            l.check("move_joints", 10.5),
+            LogVerdict::Log {
+                suppressed: 1000 - u64::from(LOG_PER_WINDOW)
+            }
+        );
+        // a flood of distinct kinds is bounded too
+        for k in 0..10_000 {
+            l.check(&format!("kind{k}"), 11.0);
+        }
+        assert!(l.kinds.len() <= LOG_KINDS);
     }
 }
