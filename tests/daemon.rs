@@ -716,3 +716,24 @@ fn a_second_daemon_cannot_take_a_live_socket() {
     assert!(pa10::daemon::api::SocketLock::claim(&sock).is_ok());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_controller_fault_is_reported_with_the_controllers_own_words() {
+    let _busy = busy();
+    let mut ls = lockstep("ctlfault", &Model::nominal());
+    // the controller's clock jumps 100 ms ahead with no command in it: its watchdog trips
+    let mut out = Vec::new();
+    let t = ls.now() + 0.1;
+    ls.servo.tick(t, &mut out);
+    for f in out {
+        ls.inject(f);
+    }
+    ls.run_for(0.05);
+    let st = status(&ls);
+    assert_eq!(st["state"], "fault", "{st}");
+    let f = st["fault"].as_str().unwrap();
+    assert!(
+        f.contains("servo controller reports a fault") && f.contains("Watchdog"),
+        "{f}"
+    );
+}

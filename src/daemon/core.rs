@@ -500,7 +500,10 @@ impl Core {
 
     /// The status snapshot.
     pub fn status(&self) -> Status {
-        let fault = self.fault().map(|f| f.to_string());
+        let fault = self.fault().map(|f| match (&f, self.link.controller_report()) {
+            (Fault::Controller, Some(report)) => format!("{f}: {report}"),
+            _ => f.to_string(),
+        });
         let (state, setpoint, tool, payload) = match &self.ctl {
             None => (
                 if self.failure.is_some() {

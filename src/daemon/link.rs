@@ -153,6 +153,17 @@ fn expected(r: Request) -> ServoState {
     }
 }
 
+/// An ERROR frame's content.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ControllerError {
+    /// The error code.
+    pub code: ErrorCode,
+    /// Axis 1…6, 0 for the controller itself.
+    pub axis: u8,
+    /// Code-specific detail (e.g. ms since the last command for a watchdog).
+    pub detail: i32,
+}
+
 /// Wake-up timing of the last cycle start, for statistics.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct CycleTiming {
@@ -175,6 +186,8 @@ pub struct Link {
     next_sync: f64,
     pending: Option<Pending>,
     servo: Option<ServoState>,
+    servo_fault: protocol::Fault,
+    last_error: Option<ControllerError>,
     timing: Option<CycleTiming>,
     tx: VecDeque<Frame>,
 }
@@ -194,6 +207,8 @@ impl Link {
             next_sync: 0.0,
             pending: None,
             servo: None,
+            servo_fault: protocol::Fault::None,
+            last_error: None,
             timing: None,
             tx: VecDeque::with_capacity(TX_CAPACITY),
         }
@@ -256,6 +271,24 @@ impl Link {
     /// The controller's last reported state.
     pub fn servo_state(&self) -> Option<ServoState> {
         self.servo
+    }
+
+    /// What the controller last said about a fault: its STATE fault code and its last
+    /// ERROR frame (other than a refused request), e.g. "watchdog (ERROR watchdog, axis 0,
+    /// detail 24)".
+    pub fn controller_report(&self) -> Option<String> {
+        let e = self.last_error.map(|e| {
+            format!(
+                "ERROR {:?} on axis {} (detail {})",
+                e.code, e.axis, e.detail
+            )
+        });
+        match (self.servo_fault, e) {
+            (protocol::Fault::None, None) => None,
+            (protocol::Fault::None, Some(e)) => Some(e),
+            (f, None) => Some(format!("STATE fault {f:?}")),
+            (f, Some(e)) => Some(format!("STATE fault {f:?}, {e}")),
+        }
     }
 
     /// What the link counted.
@@ -341,12 +374,16 @@ impl Link {
                 }
                 None
             }
-            Message::State { state, .. } => {
+            Message::State { state, fault, .. } => {
                 self.servo = Some(state);
+                self.servo_fault = fault;
                 self.on_state(state, now)
             }
-            Message::Error { code, .. } => {
+            Message::Error { code, axis, detail } => {
                 self.asm.counters.controller_errors += 1;
+                if code != ErrorCode::Rejected {
+                    self.last_error = Some(ControllerError { code, axis, detail });
+                }
                 if code == ErrorCode::Rejected {
                     return self.on_rejected();
                 }
