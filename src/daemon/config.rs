@@ -115,6 +115,15 @@ pub struct Limits {
     pub following_error: f64,
     /// Feedback older than this stops the arm, ms.
     pub feedback_timeout_ms: f64,
+    /// The command watchdog asked of the servo controller, ms (1…255): with no command for
+    /// this long it stops the arm by itself (the daemon died or its host stalled). Default
+    /// 50 ms: a loaded host without real-time priority can pause the loop for 20–30 ms.
+    #[serde(default = "default_controller_watchdog")]
+    pub controller_watchdog_ms: f64,
+}
+
+fn default_controller_watchdog() -> f64 {
+    50.0
 }
 
 /// The client API socket.
@@ -395,6 +404,19 @@ impl Config {
                 ),
             ));
         }
+        if !(l.controller_watchdog_ms.is_finite()
+            && l.controller_watchdog_ms >= 2.0 * period_ms
+            && l.controller_watchdog_ms <= 255.0)
+        {
+            return Err(invalid(
+                "limits.controller_watchdog_ms",
+                format!(
+                    "must be within [{:.1}, 255] ms (at least two cycles; the protocol's field is one byte), got {}",
+                    2.0 * period_ms,
+                    l.controller_watchdog_ms
+                ),
+            ));
+        }
         if !(1..=1000).contains(&c.api.max_clients) {
             return Err(invalid(
                 "api.max_clients",
@@ -499,6 +521,14 @@ mod tests {
                 .contains("`limits.following_error`")
         );
         assert!(err(&y.replace("mode: \"0660\"", "mode: \"rw\"")).contains("`api.mode`"));
+        assert!(
+            err(&y.replace("controller_watchdog_ms: 50", "controller_watchdog_ms: 300"))
+                .contains("`limits.controller_watchdog_ms`")
+        );
+        assert!(
+            err(&y.replace("  mode: \"0660\"", "  mode: \"0660\"\n  max_clients: 0"))
+                .contains("`api.max_clients`")
+        );
         assert!(
             err(&y.replace("backend: virtual", "backend: socketcan")).contains("`bus.interface`")
         );

@@ -175,7 +175,7 @@ impl Core {
             following_error: c.limits.following_error,
             feedback_timeout_s: c.limits.feedback_timeout_ms * 1e-3,
         };
-        let wd = c.limits.feedback_timeout_ms.round().clamp(1.0, 255.0) as u8;
+        let wd = c.limits.controller_watchdog_ms.round().clamp(1.0, 255.0) as u8;
         let link = LinkConfig::new(params.period_s, wd);
         let mut core = Self::new(loaded.model.clone(), params, link, loaded.bus_load);
         core.model_dir = loaded.model_dir.clone();
@@ -500,10 +500,12 @@ impl Core {
 
     /// The status snapshot.
     pub fn status(&self) -> Status {
-        let fault = self.fault().map(|f| match (&f, self.link.controller_report()) {
-            (Fault::Controller, Some(report)) => format!("{f}: {report}"),
-            _ => f.to_string(),
-        });
+        let fault = self
+            .fault()
+            .map(|f| match (&f, self.link.controller_report()) {
+                (Fault::Controller, Some(report)) => format!("{f}: {report}"),
+                _ => f.to_string(),
+            });
         let (state, setpoint, tool, payload) = match &self.ctl {
             None => (
                 if self.failure.is_some() {
