@@ -737,3 +737,4 @@ fn a_controller_fault_is_reported_with_the_controllers_own_words() {
         "{f}"
     );
 }
+
