@@ -737,4 +737,3 @@ fn a_controller_fault_is_reported_with_the_controllers_own_words() {
         "{f}"
     );
 }
-
