@@ -24,6 +24,7 @@ pub fn sim_config(rate_hz: f64, tag: &str) -> Loaded {
 }
 
 /// The real-time daemon on the simulated arm of `cfg` (drop the daemon first).
+#[allow(dead_code)] // each example compiles this module; not every one starts this way
 pub fn start(cfg: &Loaded) -> (SimulatedArm, Daemon) {
     let arm = SimulatedArm::from_config(cfg).expect("simulated arm");
     let d = Daemon::start(cfg, arm.host()).expect("daemon");

@@ -74,6 +74,16 @@ impl SimulatedArm {
     /// Starts the controller of `truth` at [`HOME`] (noise seeded by `seed`), ticking every
     /// millisecond.
     pub fn start(truth: TrueRobot, seed: u64) -> Result<Self, RigError> {
+        Self::start_with_priority(truth, seed, None)
+    }
+
+    /// [`SimulatedArm::start`], its thread under SCHED_FIFO at `priority` when given and
+    /// permitted (a real controller is its own hardware: a loaded host must not slow it).
+    pub fn start_with_priority(
+        truth: TrueRobot,
+        seed: u64,
+        priority: Option<u8>,
+    ) -> Result<Self, RigError> {
         let bus = VirtualBus::new(VirtualConfig::default());
         let servo = Arc::new(Mutex::new(ServoSim::new(
             truth,
@@ -84,6 +94,14 @@ impl SimulatedArm {
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("pa10-sim")
+            .on_thread_start(move || {
+                #[cfg(target_os = "linux")]
+                if let Some(p) = priority
+                    && let Err(e) = crate::daemon::realtime::set_fifo(p)
+                {
+                    tracing::warn!(priority = p, error = %e, "simulator thread: SCHED_FIFO not permitted");
+                }
+            })
             .enable_all()
             .build()?;
         let (stop, rx) = tokio::sync::watch::channel(false);

@@ -1,0 +1,97 @@
+//! The control loop on a loaded host: every core kept busy by spinning threads while the
+//! daemon moves the arm at 500 Hz, once at normal priority and once with the control thread
+//! (and the simulated controller's thread, standing in for the real controller's own
+//! hardware) under SCHED_FIFO, when the host permits it.
+//!
+//! `cargo run --release --example stress [SECONDS]` — prints cycles, overruns, wake-up jitter
+//! and compute time (p50 / p99 / max, µs) and how each run ended. BENCHMARKS.md quotes it.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use pa10::daemon::api::handle;
+use pa10::daemon::runtime::Daemon;
+use pa10::sim::rig::SimulatedArm;
+use serde_json::{Value, json};
+
+mod common;
+
+fn main() {
+    let secs: f64 = std::env::args()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(10.0);
+    let fifo_ok = std::thread::spawn(|| pa10::daemon::realtime::set_fifo(80))
+        .join()
+        .expect("probe thread");
+    println!(
+        "SCHED_FIFO on this host: {}",
+        match &fifo_ok {
+            Ok(()) => "permitted".to_string(),
+            Err(e) => format!("not permitted ({e})"),
+        }
+    );
+    let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+    println!(
+        "| priority | busy threads | cycles | overruns | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | ended |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for fifo in [false, true] {
+        if fifo && fifo_ok.is_err() {
+            println!("| SCHED_FIFO 80 | — | not permitted here | | | | |");
+            continue;
+        }
+        let mut cfg = common::sim_config(500.0, "stress");
+        let prio = fifo.then_some(80u8);
+        cfg.config.control.realtime.sched_fifo_priority = prio;
+        let (truth, seed) = pa10::sim::rig::truth_for(&cfg).expect("truth");
+        let arm = SimulatedArm::start_with_priority(truth, seed, prio.map(|p| p + 1))
+            .expect("simulated arm");
+        let d = Daemon::start(&cfg, arm.host()).expect("daemon");
+        let stop = Arc::new(AtomicBool::new(false));
+        let busy: Vec<_> = (0..cores)
+            .map(|_| {
+                let stop = stop.clone();
+                std::thread::spawn(move || {
+                    let mut x = 0u64;
+                    while !stop.load(Ordering::Relaxed) {
+                        x = x.wrapping_mul(6364136223846793005).wrapping_add(1);
+                    }
+                    x
+                })
+            })
+            .collect();
+        let a = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
+        let b = [0.3, 0.6, 1.3, 0.4, 0.8, 0.5];
+        let end = Instant::now() + Duration::from_secs_f64(secs);
+        let mut k = 0;
+        while Instant::now() < end {
+            let q = if k % 2 == 0 { b } else { a };
+            let r = handle(&d.core, &json!({"cmd": "move_joints", "q": q}).to_string());
+            let dur = r["duration_s"].as_f64().unwrap_or(0.5);
+            std::thread::sleep(Duration::from_secs_f64(dur + 0.1));
+            k += 1;
+        }
+        stop.store(true, Ordering::Relaxed);
+        for t in busy {
+            let _ = t.join();
+        }
+        let st: Value = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
+        let c = &st["cycle"];
+        println!(
+            "| {} | {cores} | {} | {} | {} | {} | {} |",
+            if fifo { "SCHED_FIFO 80" } else { "normal" },
+            c["cycles"],
+            c["overruns"],
+            common::triple(&c["jitter_us"]),
+            common::triple(&c["compute_us"]),
+            match st["fault"].as_str() {
+                Some(f) => format!("{}: {f}", st["state"]),
+                None => st["state"].to_string(),
+            }
+        );
+        drop(d);
+        drop(arm);
+    }
+}
