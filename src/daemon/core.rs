@@ -345,9 +345,10 @@ impl Core {
         let now = self.now_s;
         match cmd {
             Command::Start { mv, basis } => {
-                self.ready_controller()?;
-                let c = self.ctl.as_mut().ok_or(CommandError::Stale)?;
-                c.ready_for_move()?;
+                self.ready_controller()?.ready_for_move()?;
+                let Some(c) = self.ctl.as_mut() else {
+                    return Err(CommandError::NotReady("starting".into()));
+                };
                 if !Arc::ptr_eq(&basis.model, c.model_arc()) || basis.from != c.setpoint().q {
                     return Err(CommandError::Stale);
                 }

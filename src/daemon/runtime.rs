@@ -225,11 +225,24 @@ async fn ready_now<B: CanBus>(bus: &mut B) -> Option<Result<crate::can::bus::Bus
 /// Sends what the core queued; a send error is the core's to judge.
 fn flush<B: CanBus>(rt: &tokio::runtime::Runtime, bus: &mut B, core: &Mutex<Core>, now: f64) {
     loop {
-        let Some(f) = lock(core).poll_transmit() else {
+        // one lock for what is queued (a cycle's commands, a SYNC, a request), no allocation
+        let mut out: [Option<crate::can::Frame>; 16] = [None; 16];
+        {
+            let mut c = lock(core);
+            for slot in out.iter_mut() {
+                match c.poll_transmit() {
+                    Some(f) => *slot = Some(f),
+                    None => break,
+                }
+            }
+        }
+        if out[0].is_none() {
             return;
-        };
-        if let Err(e) = rt.block_on(bus.send(f)) {
-            lock(core).handle_bus(Err(e), now);
+        }
+        for f in out.into_iter().flatten() {
+            if let Err(e) = rt.block_on(bus.send(f)) {
+                lock(core).handle_bus(Err(e), now);
+            }
         }
     }
 }
