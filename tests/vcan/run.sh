@@ -62,6 +62,7 @@ cp "$root/config/model-nominal.yaml" "$ird/etc/"
 sed -e 's/backend: virtual/backend: socketcan\n  interface: vcan0/' \
     -e 's/rate_hz: 500 .*/rate_hz: 100/' \
     -e 's/feedback_timeout_ms: 20/feedback_timeout_ms: 300/' \
+    -e 's/controller_watchdog_ms: 50/controller_watchdog_ms: 255/' \
     -e 's/following_error: 0.01/following_error: 0.05/' \
     -e 's|socket: /tmp/pa10d-sim.sock|socket: /tmp/pa10d.sock|' \
     -e '/^sim:/,$d' "$root/config/sim.yaml" | sed 's/\\n/\n/' > "$ird/etc/vcan.yaml"
