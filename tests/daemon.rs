@@ -17,6 +17,52 @@ const SEED: u64 = 3;
 
 use crate::common::{busy_lock as busy, realtime_lock as serial};
 
+/// The real socket server on `core`, at `path`, with at most `max_clients`: its runtime, its
+/// health counters, the stop switch and the task (wait for it after `stop`).
+pub(crate) struct Server {
+    pub rt: tokio::runtime::Runtime,
+    pub health: std::sync::Arc<pa10::daemon::api::ApiHealth>,
+    pub stop: tokio::sync::watch::Sender<bool>,
+    pub task: tokio::task::JoinHandle<std::io::Result<()>>,
+}
+
+impl Server {
+    /// Starts serving and waits (≤ 5 s) until the socket exists.
+    pub(crate) fn start(
+        core: std::sync::Arc<std::sync::Mutex<pa10::daemon::core::Core>>,
+        path: &Path,
+        max_clients: usize,
+    ) -> Self {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .unwrap();
+        let (stop, stop_rx) = tokio::sync::watch::channel(false);
+        let health = std::sync::Arc::new(pa10::daemon::api::ApiHealth::default());
+        let (p, h) = (path.to_path_buf(), health.clone());
+        let task = rt.spawn(async move {
+            pa10::daemon::api::serve(&p, 0o600, max_clients, core, h, stop_rx).await
+        });
+        let end = Instant::now() + Duration::from_secs(5);
+        while !path.exists() && Instant::now() < end {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        Self {
+            rt,
+            health,
+            stop,
+            task,
+        }
+    }
+
+    /// Stops serving; the server's own result.
+    pub(crate) fn stop(self) {
+        self.stop.send(true).unwrap();
+        self.rt.block_on(self.task).unwrap().unwrap();
+    }
+}
+
 fn temp_dir(tag: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("pa10-daemon-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -24,7 +70,7 @@ fn temp_dir(tag: &str) -> PathBuf {
 }
 
 /// A sim.yaml variant in `dir` using `model` and a socket inside `dir`.
-fn config(dir: &Path, model: &Model) -> PathBuf {
+pub(crate) fn config(dir: &Path, model: &Model) -> PathBuf {
     model.save(dir.join("model.yaml")).unwrap();
     let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.yaml"))
         .unwrap()
@@ -578,21 +624,8 @@ fn the_socket_refuses_overlong_and_non_utf8_lines_and_extra_clients_with_an_answ
     let ls = lockstep("sock", &Model::nominal());
     let dir = temp_dir("sock-api");
     let path = dir.join("api.sock");
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(1)
-        .enable_all()
-        .build()
-        .unwrap();
-    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
-    let (p, core) = (path.clone(), ls.core.clone());
-    let health = std::sync::Arc::new(pa10::daemon::api::ApiHealth::default());
-    let h = health.clone();
-    let server =
-        rt.spawn(async move { pa10::daemon::api::serve(&p, 0o600, 2, core, h, stop_rx).await });
-    let end = Instant::now() + Duration::from_secs(5);
-    while !path.exists() && Instant::now() < end {
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let server = Server::start(ls.core.clone(), &path, 2);
+    let health = server.health.clone();
     let answer = |s: &mut std::os::unix::net::UnixStream| -> Value {
         let mut line = String::new();
         BufReader::new(s.try_clone().unwrap())
@@ -647,8 +680,7 @@ fn the_socket_refuses_overlong_and_non_utf8_lines_and_extra_clients_with_an_answ
         Ok(n) => assert_eq!(n, 0),
         Err(e) => assert_eq!(e.kind(), std::io::ErrorKind::ConnectionReset),
     }
-    stop_tx.send(true).unwrap();
-    rt.block_on(server).unwrap().unwrap();
+    server.stop();
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

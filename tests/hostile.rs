@@ -5,30 +5,15 @@
 
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::net::UnixStream;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use pa10::daemon::api::{ApiHealth, serve};
 use pa10::daemon::config::Config;
 use pa10::model::Model;
 use pa10::sim::rig::Lockstep;
 use serde_json::{Value, json};
-
-fn config(dir: &Path) -> PathBuf {
-    Model::nominal().save(dir.join("model.yaml")).unwrap();
-    let text = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.yaml"))
-        .unwrap()
-        .replace("model: model-nominal.yaml", "model: model.yaml")
-        .replace(
-            "socket: /tmp/pa10d-sim.sock",
-            &format!("socket: {}", dir.join("api.sock").display()),
-        );
-    let p = dir.join("pa10d.yaml");
-    std::fs::write(&p, text).unwrap();
-    p
-}
 
 /// One request line (raw bytes) and its answer; `None` when the server closed.
 fn ask(s: &mut UnixStream, line: &[u8]) -> Option<Value> {
@@ -117,23 +102,11 @@ fn thousands_of_hostile_requests_change_nothing_while_a_good_client_moves_the_ar
     let _busy = crate::common::busy_lock();
     let dir = std::env::temp_dir().join(format!("pa10-hostile-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let loaded = Config::load(&config(&dir)).unwrap();
+    let loaded = Config::load(&crate::daemon::config(&dir, &Model::nominal())).unwrap();
     let mut ls = Lockstep::from_config(&loaded).unwrap();
     ls.run_until_ready(1.0).unwrap();
     let path = dir.join("api.sock");
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
-    let health = Arc::new(ApiHealth::default());
-    let (p, core, h) = (path.clone(), ls.core.clone(), health.clone());
-    let server = rt.spawn(async move { serve(&p, 0o600, 64, core, h, stop_rx).await });
-    let end = Instant::now() + Duration::from_secs(5);
-    while !path.exists() && Instant::now() < end {
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let server = crate::daemon::Server::start(ls.core.clone(), &path, 64);
     let rss0 = rss_kib();
     let requests = Arc::new(hostile_requests(&dir));
     let done = Arc::new(AtomicBool::new(false));
@@ -222,7 +195,6 @@ fn thousands_of_hostile_requests_change_nothing_while_a_good_client_moves_the_ar
         "hostile: {refused} refused, {moves} good moves landed, {:.1} s simulated, RSS +{grown} KiB",
         ls.now()
     );
-    stop_tx.send(true).unwrap();
-    rt.block_on(server).unwrap().unwrap();
+    server.stop();
     std::fs::remove_dir_all(&dir).unwrap();
 }
