@@ -256,11 +256,6 @@ impl Core {
     /// Records the compute time of the cycle just answered (µs, measured by the shell).
     pub fn record_compute(&mut self, us: f64) {
         self.compute.record(us);
-        self.stats.compute_us = [
-            self.compute.quantile(0.5),
-            self.compute.quantile(0.99),
-            self.compute.max_us(),
-        ];
     }
 
     /// Cycles started (SYNC sent) so far.
@@ -462,11 +457,6 @@ impl Core {
             self.last = Some(js);
         }
         self.stats.cycles += 1;
-        self.stats.jitter_us = [
-            self.jitter.quantile(0.5),
-            self.jitter.quantile(0.99),
-            self.jitter.max_us(),
-        ];
         let Some(c) = self.ctl.as_mut() else {
             return;
         };
@@ -549,7 +539,11 @@ impl Core {
             tool_quaternion: q,
             payload_n: payload,
             link: self.link.counters(),
-            cycle: self.stats,
+            cycle: CycleStats {
+                jitter_us: self.jitter.summary(),
+                compute_us: self.compute.summary(),
+                ..self.stats
+            },
         }
     }
 }

@@ -36,9 +36,9 @@ impl Histogram {
         self.max_us = self.max_us.max(us);
         self.n += 1;
     }
-    /// The largest duration recorded, µs.
-    pub fn max_us(&self) -> f64 {
-        self.max_us
+    /// p50, p99 and max, µs (what `status` reports).
+    pub fn summary(&self) -> [f64; 3] {
+        [self.quantile(0.5), self.quantile(0.99), self.max_us]
     }
     /// The `p` quantile (0…1), µs, to the bucket's upper edge.
     pub fn quantile(&self, p: f64) -> f64 {
