@@ -391,32 +391,32 @@ impl Config {
             ));
         }
         let period_ms = 1e3 / c.control.rate_hz;
-        if !(l.feedback_timeout_ms.is_finite()
-            && l.feedback_timeout_ms >= 2.0 * period_ms
-            && l.feedback_timeout_ms <= 1000.0)
-        {
-            return Err(invalid(
-                "limits.feedback_timeout_ms",
-                format!(
-                    "must be within [{:.1}, 1000] ms (at least two cycles), got {}",
-                    2.0 * period_ms,
-                    l.feedback_timeout_ms
-                ),
-            ));
-        }
-        if !(l.controller_watchdog_ms.is_finite()
-            && l.controller_watchdog_ms >= 2.0 * period_ms
-            && l.controller_watchdog_ms <= 255.0)
-        {
-            return Err(invalid(
-                "limits.controller_watchdog_ms",
-                format!(
-                    "must be within [{:.1}, 255] ms (at least two cycles; the protocol's field is one byte), got {}",
-                    2.0 * period_ms,
-                    l.controller_watchdog_ms
-                ),
-            ));
-        }
+        // a time limit of at least two cycles, at most `max` ms
+        let within = |key: &str, v: f64, max: f64, note: &str| {
+            if v.is_finite() && v >= 2.0 * period_ms && v <= max {
+                Ok(())
+            } else {
+                Err(invalid(
+                    key,
+                    format!(
+                        "must be within [{:.1}, {max}] ms (at least two cycles{note}), got {v}",
+                        2.0 * period_ms
+                    ),
+                ))
+            }
+        };
+        within(
+            "limits.feedback_timeout_ms",
+            l.feedback_timeout_ms,
+            1000.0,
+            "",
+        )?;
+        within(
+            "limits.controller_watchdog_ms",
+            l.controller_watchdog_ms,
+            255.0,
+            "; the protocol's field is one byte",
+        )?;
         if !(1..=1000).contains(&c.api.max_clients) {
             return Err(invalid(
                 "api.max_clients",
