@@ -194,15 +194,22 @@ fn stale_feedback_faults_and_only_reset_clears_it() {
     let model = Model::nominal().with_tool(&tool()).unwrap();
     let mut ctl = Controller::new(model.clone(), params(), &first);
     lp.run(&mut ctl, 0.1);
-    // feedback stops arriving: the loop holds on for the timeout (20 ms), then faults
-    let mut t = lp.t;
-    for _ in 0..5 {
-        ctl.step(t, None);
-        assert_eq!(ctl.activity(), &Activity::Holding);
-        t += PERIOD;
-    }
+    // a host pause of the loop (40 ms between two cycles, inside the controller's 50 ms
+    // watchdog) is not the controller's silence: one cycle without feedback after it does
+    // not fault
+    lp.t += 0.04;
+    ctl.step(lp.t, None);
+    assert_eq!(ctl.activity(), &Activity::Holding);
+    lp.t += PERIOD;
+    let fb = lp.feedback().expect("the servo answers");
+    ctl.step(lp.t, Some(&fb));
+    assert_eq!(ctl.activity(), &Activity::Holding);
+    let mut t = lp.t + PERIOD;
+    // feedback stops arriving: the loop holds on for the timeout (20 ms = 10 cycles it
+    // listened through), then faults on the 11th
     for _ in 0..10 {
         ctl.step(t, None);
+        assert_eq!(ctl.activity(), &Activity::Holding);
         t += PERIOD;
     }
     assert_eq!(ctl.step(t, None), [0.0; 6]);

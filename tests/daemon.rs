@@ -346,6 +346,74 @@ impl Drop for Reaped {
     }
 }
 
+/// Out of file descriptors (EMFILE, here forced by `ulimit -n`): the `pa10d` binary says so
+/// once, keeps its loop, and serves clients again as soon as descriptors are free.
+#[test]
+fn the_daemon_binary_keeps_accepting_after_running_out_of_file_descriptors() {
+    use std::io::{BufRead, Write};
+    let _serial = serial();
+    let dir = temp_dir("emfile");
+    let cfg = config(&dir, &Model::nominal());
+    let text = std::fs::read_to_string(&cfg)
+        .unwrap()
+        .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100")
+        .replace("  model_dir: .", "  model_dir: .\n  max_clients: 1000");
+    std::fs::write(&cfg, text).unwrap();
+    let log = dir.join("pa10d.log");
+    let _child = Reaped(
+        std::process::Command::new("sh")
+            .args(["-c", "ulimit -n 40 && exec \"$0\" --config \"$1\""])
+            .arg(env!("CARGO_BIN_EXE_pa10d"))
+            .arg(&cfg)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .spawn()
+            .unwrap(),
+    );
+    let sock = dir.join("api.sock");
+    let end = Instant::now() + Duration::from_secs(10);
+    while !sock.exists() && Instant::now() < end {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    // one status round trip, or None when no answer comes within `wait`
+    let ask = |s: &mut std::os::unix::net::UnixStream, wait: Duration| -> Option<Value> {
+        s.set_read_timeout(Some(wait)).unwrap();
+        s.write_all(b"{\"cmd\":\"status\"}\n").ok()?;
+        let mut line = String::new();
+        std::io::BufReader::new(s.try_clone().unwrap())
+            .read_line(&mut line)
+            .ok()?;
+        serde_json::from_str(&line).ok()
+    };
+    // idle clients until the daemon has no descriptor left for the next one
+    let mut clients = Vec::new();
+    let mut starved = false;
+    for _ in 0..200 {
+        let mut s = std::os::unix::net::UnixStream::connect(&sock).unwrap();
+        let answered = ask(&mut s, Duration::from_millis(500)).is_some();
+        clients.push(s);
+        if !answered {
+            starved = true;
+            break;
+        }
+    }
+    assert!(starved, "40 descriptors never ran out");
+    let held = clients.len();
+    drop(clients);
+    // descriptors free again: a new client is served within the back-off (≤ 1 s) and the
+    // arm never stopped holding
+    let mut s = std::os::unix::net::UnixStream::connect(&sock).unwrap();
+    let v = ask(&mut s, Duration::from_secs(5)).expect("served again after EMFILE");
+    assert_eq!(v["status"]["state"], "holding", "{v}");
+    let text = std::fs::read_to_string(&log).unwrap();
+    assert_eq!(
+        text.matches("accepting a client failed").count(),
+        1,
+        "logged once for {held} clients: {text}"
+    );
+    assert!(text.contains("accepting clients again"), "{text}");
+}
+
 /// The one real-time end-to-end test: the `pa10d` binary on its socket with the simulated arm.
 #[test]
 fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {

@@ -45,10 +45,18 @@ pub struct JointState {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[non_exhaustive]
 pub enum Fault {
-    /// No complete feedback for longer than the timeout.
-    #[error("stale feedback: none for {age_ms:.1} ms (limit {limit_ms:.1} ms)")]
+    /// No complete feedback in as many consecutive cycles as the timeout spans. Cycles the
+    /// loop itself did not run (the host paused it) do not count: only the controller's
+    /// silence while the loop was listening does.
+    #[error(
+        "stale feedback: none in {missed_cycles} consecutive cycles ({listened_ms:.1} ms of listening, limit {limit_ms:.1} ms; the last is {age_ms:.1} ms old)"
+    )]
     StaleFeedback {
-        /// Age of the last feedback, ms.
+        /// Consecutive cycles without complete feedback.
+        missed_cycles: u32,
+        /// Those cycles' length, ms.
+        listened_ms: f64,
+        /// Age of the last feedback, ms (includes any pause of the host).
         age_ms: f64,
         /// Timeout, ms.
         limit_ms: f64,
@@ -175,6 +183,8 @@ pub struct Controller {
     /// Direction each joint last moved in (−1, 0, +1): the side its backlash is taken up on.
     direction: [f64; 6],
     last_feedback_s: f64,
+    /// Consecutive cycles without complete feedback.
+    missed: u32,
     last_state: Option<JointState>,
 }
 
@@ -198,6 +208,7 @@ impl Controller {
             tau_filtered: [0.0; 6],
             direction: [0.0; 6],
             last_feedback_s: first.stamp_s,
+            missed: 0,
             last_state: Some(*first),
         }
     }
@@ -279,6 +290,7 @@ impl Controller {
     pub fn resync(&mut self, state: &JointState) {
         self.last_state = Some(*state);
         self.last_feedback_s = state.stamp_s;
+        self.missed = 0;
         self.activity = Activity::Faulted(Fault::Controller);
         self.reset();
     }
@@ -320,17 +332,26 @@ impl Controller {
     /// One cycle at `now_s`: `fb` is this cycle's complete feedback, `None` when it did not
     /// arrive. Returns the six speed commands (rad/s); zero when faulted.
     pub fn step(&mut self, now_s: f64, fb: Option<&JointState>) -> [f64; 6] {
-        if let Some(f) = fb {
-            self.last_feedback_s = f.stamp_s;
-            self.last_state = Some(*f);
+        match fb {
+            Some(f) => {
+                self.last_feedback_s = f.stamp_s;
+                self.last_state = Some(*f);
+                self.missed = 0;
+            }
+            None => self.missed = self.missed.saturating_add(1),
         }
         if matches!(self.activity, Activity::Faulted(_)) {
             return [0.0; 6];
         }
-        let age = now_s - self.last_feedback_s;
-        if age > self.p.feedback_timeout_s {
+        // the controller's silence is judged in cycles the loop ran and listened through: a
+        // host pause of the loop itself is not evidence against the controller (its own
+        // watchdog, `limits.controller_watchdog_ms`, judges the loop)
+        let listened = f64::from(self.missed) * self.p.period_s;
+        if listened > self.p.feedback_timeout_s + 1e-9 {
             return self.fault(Fault::StaleFeedback {
-                age_ms: age * 1e3,
+                missed_cycles: self.missed,
+                listened_ms: listened * 1e3,
+                age_ms: (now_s - self.last_feedback_s) * 1e3,
                 limit_ms: self.p.feedback_timeout_s * 1e3,
             });
         }

@@ -176,13 +176,14 @@ fn control_thread<B: CanBus>(
             woke = Instant::now();
             let now = secs(woke);
             let mut c = lock(&core);
-            match ev {
-                Err(BusError::Timeout) => c.handle_timeout(now),
-                ev => {
-                    c.handle_bus(ev, now);
-                    c.handle_timeout(now);
-                }
+            if !matches!(ev, Err(BusError::Timeout)) {
+                c.handle_bus(ev, now);
+                // after a late wake-up (a host pause) the rest of the cycle's feedback is
+                // already queued: take it before the deadline is judged, or the pause
+                // would be blamed on the controller
+                drain_ready(&rt, &mut bus, &mut c, now);
             }
+            c.handle_timeout(now);
         } else {
             let now = Instant::now();
             if now < due {
@@ -192,12 +193,7 @@ fn control_thread<B: CanBus>(
             let now = secs(woke);
             // what arrived while asleep (heartbeats, stray frames), then the deadline
             let mut c = lock(&core);
-            for _ in 0..64 {
-                match rt.block_on(ready_now(&mut bus)) {
-                    None => break,
-                    Some(ev) => c.handle_bus(ev, now),
-                }
-            }
+            drain_ready(&rt, &mut bus, &mut c, now);
             c.handle_timeout(now);
         }
         flush(&rt, &mut bus, &core, secs(Instant::now()));
@@ -208,6 +204,17 @@ fn control_thread<B: CanBus>(
         if c.cycles() > cycles {
             // compute time: from the wake-up that sent the SYNC to the commands sent
             c.record_compute(cycle_start.elapsed().as_secs_f64() * 1e6);
+        }
+    }
+}
+
+/// Hands the core what the bus holds now (at most a burst's worth, so a flood cannot keep
+/// the thread from its deadline).
+fn drain_ready<B: CanBus>(rt: &tokio::runtime::Runtime, bus: &mut B, core: &mut Core, now: f64) {
+    for _ in 0..64 {
+        match rt.block_on(ready_now(bus)) {
+            None => break,
+            Some(ev) => core.handle_bus(ev, now),
         }
     }
 }
