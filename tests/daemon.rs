@@ -346,6 +346,41 @@ impl Drop for Reaped {
     }
 }
 
+/// A paused control thread (here: the core's lock held for 30 ms, as a host stall would) finds
+/// the cycle's feedback queued when it wakes: it takes all of it before judging the window, so
+/// neither an incomplete cycle nor a stale-feedback fault is blamed on the controller.
+#[test]
+fn a_paused_control_thread_is_not_a_silent_controller() {
+    let _serial = serial();
+    let dir = temp_dir("pause");
+    let loaded = Config::load(&config(&dir, &Model::nominal())).unwrap();
+    let arm = pa10::sim::rig::SimulatedArm::from_config(&loaded).unwrap();
+    let d = pa10::daemon::runtime::Daemon::start(&loaded, arm.host()).unwrap();
+    let before = pa10::daemon::runtime::lock(&d.core).status();
+    for _ in 0..10 {
+        {
+            let _paused = pa10::daemon::runtime::lock(&d.core);
+            std::thread::sleep(Duration::from_millis(30));
+        }
+        std::thread::sleep(Duration::from_millis(60));
+    }
+    let after = pa10::daemon::runtime::lock(&d.core).status();
+    drop(d);
+    drop(arm);
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(after.state, "holding", "{:?}", after.fault);
+    assert!(
+        after.cycle.overruns >= before.cycle.overruns + 10,
+        "{after:?}"
+    );
+    // (before the fix: 7 of 10 pauses cost a cycle and the first one a stale-feedback fault;
+    // a shared test host may still delay the simulated controller itself once or twice)
+    assert!(
+        after.link.incomplete - before.link.incomplete <= 2,
+        "{after:?}"
+    );
+}
+
 /// Out of file descriptors (EMFILE, here forced by `ulimit -n`): the `pa10d` binary says so
 /// once, keeps its loop, and serves clients again as soon as descriptors are free.
 #[test]

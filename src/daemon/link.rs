@@ -441,6 +441,14 @@ impl Link {
                 _ => None,
             },
             Phase::Running => match self.window_end {
+                Some(end) if now - end > self.window_s() => {
+                    // judged more than a window late: the loop was paused (by the host), not
+                    // listening, and the feedback may still be on its way; listen once more
+                    // for a window from now rather than blame the controller
+                    self.asm.counters.paused += 1;
+                    self.window_end = Some(now + self.window_s());
+                    None
+                }
                 Some(end) if now >= end => self.close_window(now),
                 Some(_) => None,
                 None if now >= self.next_sync => {
@@ -455,7 +463,7 @@ impl Link {
                         late_s: late,
                         overrun,
                     });
-                    self.begin_sync(now, self.cfg.feedback_window * self.cfg.period_s);
+                    self.begin_sync(now, self.window_s());
                     None
                 }
                 None => None,
@@ -470,6 +478,11 @@ impl Link {
             request,
             until: now + self.cfg.request_timeout_s,
         };
+    }
+
+    /// How long a running cycle listens for its feedback, s.
+    fn window_s(&self) -> f64 {
+        self.cfg.feedback_window * self.cfg.period_s
     }
 
     fn begin_sync(&mut self, now: f64, window_s: f64) {
@@ -569,6 +582,9 @@ pub struct LinkCounters {
     pub cycles: u64,
     /// Cycles whose feedback was incomplete at the deadline.
     pub incomplete: u64,
+    /// Feedback windows the loop judged more than a window late (it was paused, not
+    /// listening) and listened to once more instead of closing.
+    pub paused: u64,
     /// Frames that did not decode.
     pub malformed: u64,
     /// Feedback frames of another cycle.
@@ -801,6 +817,41 @@ mod tests {
         // a late frame of the closed cycle is stale, not a second cycle
         assert_eq!(l.handle(&fb(2, 2, 0), end + 1e-4), None);
         assert_eq!(l.counters().stale, 1);
+    }
+
+    #[test]
+    fn a_window_judged_a_window_late_listens_once_more_instead_of_closing() {
+        let mut l = connected();
+        let t = l.poll_timeout().unwrap();
+        l.handle_timeout(t);
+        sent(&mut l);
+        let end = l.poll_timeout().unwrap();
+        // the loop was paused for 10 ms: the window is re-opened from the wake-up …
+        assert_eq!(l.handle_timeout(end + 0.01), None);
+        assert_eq!(l.counters().paused, 1);
+        let again = l.poll_timeout().unwrap();
+        assert!((again - (end + 0.01 + 0.6 * PERIOD)).abs() < 1e-12);
+        // … where the queued feedback completes it
+        for axis in 1..=5 {
+            l.handle(&fb(axis, 2, 0), end + 0.0101);
+        }
+        assert!(matches!(
+            l.handle(&fb(6, 2, 0), end + 0.0101),
+            Some(LinkEvent::Cycle {
+                feedback: Some(_),
+                ..
+            })
+        ));
+        // judged on time (within a window of its end), an incomplete window closes
+        let t = l.poll_timeout().unwrap();
+        l.handle_timeout(t);
+        let end = l.poll_timeout().unwrap();
+        assert!(matches!(
+            l.handle_timeout(end + 0.5 * 0.6 * PERIOD),
+            Some(LinkEvent::Cycle { feedback: None, .. })
+        ));
+        assert_eq!(l.counters().paused, 1);
+        assert_eq!(l.counters().incomplete, 1);
     }
 
     #[test]
