@@ -3,8 +3,11 @@
 //! (and the simulated controller's thread, standing in for the real controller's own
 //! hardware) under SCHED_FIFO, when the host permits it.
 //!
-//! `cargo run --release --example stress [SECONDS]` — prints cycles, overruns, wake-up jitter
-//! and compute time (p50 / p99 / max, µs) and how each run ended. BENCHMARKS.md quotes it.
+//! `cargo run --release --example stress [SECONDS] [--check]` — prints cycles, overruns,
+//! incomplete and paused feedback windows, wake-up jitter and compute time (p50 / p99 / max,
+//! µs) and how each run ended. BENCHMARKS.md quotes it. With `--check` (CI runs it so) it
+//! exits 1 when the SCHED_FIFO run ends in a fault: with real-time priority a loaded host
+//! must not stop the arm.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -18,10 +21,10 @@ use serde_json::{Value, json};
 mod common;
 
 fn main() {
-    let secs: f64 = std::env::args()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(10.0);
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let check = args.iter().any(|a| a == "--check");
+    let secs: f64 = args.iter().find_map(|s| s.parse().ok()).unwrap_or(10.0);
+    let mut failed = false;
     let fifo_ok = std::thread::spawn(|| pa10::daemon::realtime::set_fifo(80))
         .join()
         .expect("probe thread");
@@ -34,12 +37,12 @@ fn main() {
     );
     let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
     println!(
-        "| priority | busy threads | cycles | overruns | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | ended |"
+        "| priority | busy threads | cycles | overruns | incomplete / paused | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | ended |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     for fifo in [false, true] {
         if fifo && fifo_ok.is_err() {
-            println!("| SCHED_FIFO 80 | — | not permitted here | | | | |");
+            println!("| SCHED_FIFO 80 | — | not permitted here | | | | | |");
             continue;
         }
         let mut cfg = common::sim_config(500.0, "stress");
@@ -79,11 +82,14 @@ fn main() {
         }
         let st: Value = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
         let c = &st["cycle"];
+        failed |= fifo && !st["fault"].is_null();
         println!(
-            "| {} | {cores} | {} | {} | {} | {} | {} |",
+            "| {} | {cores} | {} | {} | {} / {} | {} | {} | {} |",
             if fifo { "SCHED_FIFO 80" } else { "normal" },
             c["cycles"],
             c["overruns"],
+            st["link"]["incomplete"],
+            st["link"]["paused"],
             common::triple(&c["jitter_us"]),
             common::triple(&c["compute_us"]),
             match st["fault"].as_str() {
@@ -93,5 +99,9 @@ fn main() {
         );
         drop(d);
         drop(arm);
+    }
+    if check && failed {
+        eprintln!("stress: the SCHED_FIFO run ended in a fault");
+        std::process::exit(1);
     }
 }
