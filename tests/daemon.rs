@@ -811,6 +811,15 @@ fn load_model_reads_only_regular_files_inside_the_model_dir_and_never_echoes_the
             "outside the model directory",
         ),
         ("out.yaml".to_string(), "outside the model directory"),
+        // no probing: a missing file outside is refused as outside, not as missing
+        (
+            "/nonexistent-pa10-probe/x.yaml".to_string(),
+            "outside the model directory",
+        ),
+        (
+            "../nonexistent-pa10-probe".to_string(),
+            "outside the model directory",
+        ),
         ("passwd.yaml".to_string(), "passwd.yaml"),
         ("big.yaml".to_string(), "more than the 1048576"),
         ("missing.yaml".to_string(), "missing.yaml"),
@@ -823,6 +832,10 @@ fn load_model_reads_only_regular_files_inside_the_model_dir_and_never_echoes_the
         assert_eq!(r["ok"], false, "{path}: {r}");
         let e = r["error"].as_str().unwrap();
         assert!(e.contains(why), "{path}: {e}");
+        assert!(
+            !(why.contains("outside") && e.contains("os error")),
+            "{path}: the file system was asked: {e}"
+        );
         assert!(
             !e.contains("root:x") && !e.contains("/bin/bash"),
             "{path}: leaks {e}"

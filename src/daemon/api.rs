@@ -94,6 +94,24 @@ pub fn read_model(dir: &Path, path: &Path) -> Result<Model, String> {
     use std::io::Read;
     let full = dir.join(path);
     let shown = full.display();
+    // judged on the name before the file system is asked, so that a refusal never tells
+    // whether something exists outside the directory
+    if path
+        .components()
+        .any(|c| matches!(c, std::path::Component::ParentDir))
+    {
+        return Err(format!(
+            "{} is refused: `..` could lead outside the model directory {} (api.model_dir)",
+            path.display(),
+            dir.display()
+        ));
+    }
+    if !full.starts_with(dir) {
+        return Err(format!(
+            "{shown} is outside the model directory {} (api.model_dir)",
+            dir.display()
+        ));
+    }
     let real = full.canonicalize().map_err(|e| format!("{shown}: {e}"))?;
     let dir_c = dir
         .canonicalize()

@@ -1,0 +1,185 @@
+//! The hostile-client suite in real time: the daemon on the simulated arm (control thread under
+//! SCHED_FIFO where the host permits it), its real socket server, and a well-behaved client
+//! moving the arm back and forth — once alone, once while four hostile clients send ≥ 1000
+//! malformed requests of every class (`common/hostile.rs`). Prints the loop's timing of both
+//! runs, the refusals, the moves landed and the memory grown.
+//!
+//! `cargo run --release --example hostile [SECONDS] [--check]` — with `--check` (CI runs it
+//! so) it exits 1 if the arm faulted, or, under SCHED_FIFO, if the hostile run's p99 wake-up
+//! jitter exceeds the quiet run's by more than max(2×, +1 ms). Every refusal is checked for
+//! precision in both modes (a vague or leaking answer panics). BENCHMARKS.md quotes it.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use pa10::daemon::api::{ApiHealth, handle, serve};
+use pa10::daemon::runtime::Daemon;
+use pa10::sim::rig::SimulatedArm;
+use serde_json::Value;
+
+mod common;
+#[path = "common/hostile.rs"]
+mod suite;
+
+/// Rounds of every class per hostile client (four clients: ≥ 1000 of every class).
+const ROUNDS: usize = 250;
+
+struct Run {
+    status: Value,
+    moves: usize,
+    refused: usize,
+    seconds: f64,
+    rss_grown_kib: u64,
+}
+
+fn run(secs: f64, fifo: bool, hostile: bool, dir: &Path) -> Run {
+    let mut cfg = common::sim_config(500.0, if hostile { "hostile" } else { "quiet" });
+    cfg.config.control.realtime.sched_fifo_priority = fifo.then_some(80);
+    // load_model's confinement is judged in the run's own folder (its secret.yaml included)
+    cfg.model_dir = dir.to_path_buf();
+    let (truth, seed) = pa10::sim::rig::truth_for(&cfg).expect("truth");
+    let arm = SimulatedArm::start_with_priority(truth, seed, fifo.then_some(81)).expect("arm");
+    let d = Daemon::start(&cfg, arm.host()).expect("daemon");
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let path = dir.join(if hostile {
+        "hostile.sock"
+    } else {
+        "quiet.sock"
+    });
+    let (stop, stop_rx) = tokio::sync::watch::channel(false);
+    let server = {
+        let (p, core) = (path.clone(), d.core.clone());
+        rt.spawn(async move {
+            serve(&p, 0o600, 64, core, Arc::new(ApiHealth::default()), stop_rx).await
+        })
+    };
+    while !path.exists() {
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let rss0 = suite::rss_kib();
+    let t0 = Instant::now();
+    let requests = Arc::new(suite::requests(dir));
+    let busy = Arc::new(AtomicBool::new(hostile));
+    let clients: Vec<_> = (0..if hostile { 4 } else { 0 })
+        .map(|_| {
+            let (path, requests) = (path.clone(), requests.clone());
+            std::thread::spawn(move || suite::hammer(&path, &requests, ROUNDS))
+        })
+        .collect();
+    let moves = {
+        let busy = busy.clone();
+        let end = t0 + Duration::from_secs_f64(secs);
+        // moves go on for the duration and while the hostile clients are still at it
+        let watcher = {
+            let clients_done = busy.clone();
+            move |_| Instant::now() < end || clients_done.load(Ordering::SeqCst)
+        };
+        let mover = {
+            let path = path.clone();
+            std::thread::spawn(move || suite::mover(&path, watcher))
+        };
+        let refused: usize = clients
+            .into_iter()
+            .map(|c| {
+                c.join()
+                    .expect("a hostile client panicked: an imprecise answer")
+            })
+            .sum();
+        busy.store(false, Ordering::SeqCst);
+        (mover.join().expect("the good client failed"), refused)
+    };
+    let seconds = t0.elapsed().as_secs_f64();
+    let status = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
+    let rss_grown_kib = suite::rss_kib().saturating_sub(rss0);
+    let _ = stop.send(true);
+    let _ = rt.block_on(server);
+    drop(d);
+    drop(arm);
+    Run {
+        status,
+        moves: moves.0,
+        refused: moves.1,
+        seconds,
+        rss_grown_kib,
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let check = args.iter().any(|a| a == "--check");
+    let secs: f64 = args.iter().find_map(|s| s.parse().ok()).unwrap_or(5.0);
+    let fifo = std::thread::spawn(|| pa10::daemon::realtime::set_fifo(80).is_ok())
+        .join()
+        .expect("probe thread");
+    let dir = std::env::temp_dir().join(format!("pa10-hostile-example-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    println!(
+        "control thread: {}",
+        if fifo {
+            "SCHED_FIFO 80"
+        } else {
+            "normal priority (SCHED_FIFO not permitted)"
+        }
+    );
+    println!(
+        "| run | s | refused | good moves | cycles | overruns | incomplete / paused | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | RSS + [KiB] | ended |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut p99 = [0.0; 2];
+    let mut failed = Vec::new();
+    for (k, hostile) in [false, true].into_iter().enumerate() {
+        let r = run(secs, fifo, hostile, &dir);
+        let (st, c) = (&r.status, &r.status["cycle"]);
+        p99[k] = c["jitter_us"][1].as_f64().unwrap_or(f64::INFINITY);
+        if !st["fault"].is_null() {
+            failed.push(format!(
+                "the {} run faulted: {}",
+                if hostile { "hostile" } else { "quiet" },
+                st["fault"]
+            ));
+        }
+        println!(
+            "| {} | {:.1} | {} | {} | {} | {} | {} / {} | {} | {} | {} | {} |",
+            if hostile {
+                "4 hostile clients"
+            } else {
+                "quiet"
+            },
+            r.seconds,
+            r.refused,
+            r.moves,
+            c["cycles"],
+            c["overruns"],
+            st["link"]["incomplete"],
+            st["link"]["paused"],
+            common::triple(&c["jitter_us"]),
+            common::triple(&c["compute_us"]),
+            r.rss_grown_kib,
+            st["state"]
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    let allowed = (2.0 * p99[0]).max(p99[0] + 1000.0);
+    println!(
+        "p99 jitter: quiet {:.0} µs, hostile {:.0} µs (allowed under SCHED_FIFO: {allowed:.0} µs)",
+        p99[0], p99[1]
+    );
+    if fifo && p99[1] > allowed {
+        failed.push(format!(
+            "p99 jitter {:.0} µs under hostile clients > {allowed:.0} µs",
+            p99[1]
+        ));
+    }
+    if check && !failed.is_empty() {
+        for f in &failed {
+            eprintln!("hostile: {f}");
+        }
+        std::process::exit(1);
+    }
+}
