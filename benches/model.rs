@@ -90,6 +90,7 @@ fn bench(c: &mut Criterion) {
         acceleration: [1.0, 1.0, 2.0, 4.0, 4.0, 4.0],
         following_error: 0.05,
         feedback_timeout_s: 1e9,
+        stream_deadline_s: 1e9,
     };
     let js = JointState {
         q_motor: q,

@@ -26,6 +26,7 @@ fn params() -> LoopParams {
         acceleration: AMAX,
         following_error: 0.01,
         feedback_timeout_s: 0.02,
+        stream_deadline_s: 0.1,
     }
 }
 

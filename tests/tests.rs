@@ -15,3 +15,4 @@ mod model;
 mod model_file;
 mod properties;
 mod servo;
+mod trajectory;

@@ -15,9 +15,11 @@ use tokio::io::{AsyncBufReadExt, AsyncWriteExt, BufReader};
 use tokio::net::UnixListener;
 
 use super::control::CommandError;
-use super::core::{Command, Core, PlanBasis};
+use super::control::{Stream, Tolerances};
+use super::core::{ClientId, Command, Core, LOCAL, PlanBasis};
 use super::motion::{Move, MoveError};
 use super::runtime::lock;
+use super::trajectory::TrajectoryPoint;
 use crate::model::{Model, frame_from_pose};
 
 /// A client request.
@@ -59,6 +61,53 @@ pub enum Request {
         /// Hz (0.1…100).
         rate_hz: f64,
     },
+    /// Follows a timed joint trajectory (link side), replacing what runs.
+    FollowTrajectory {
+        /// Waypoints.
+        points: Vec<TrajectoryPoint>,
+        /// Per-joint path tolerance, rad (0: unchecked; default unchecked).
+        #[serde(default)]
+        path_tolerance: Option<[f64; 6]>,
+        /// Per-joint goal tolerance, rad (0: unchecked; default 0.005).
+        #[serde(default)]
+        goal_tolerance: Option<[f64; 6]>,
+        /// Time after the end the goal may still be reached, s (default 1).
+        #[serde(default)]
+        goal_time_tolerance: Option<f64>,
+    },
+    /// A streamed setpoint: link positions (rad), or a tool pose.
+    Servo {
+        /// Link positions, rad.
+        #[serde(default)]
+        positions: Option<[f64; 6]>,
+        /// Tool position, m (base frame), with `quaternion`.
+        #[serde(default)]
+        position: Option<[f64; 3]>,
+        /// Tool orientation, unit quaternion w, x, y, z.
+        #[serde(default)]
+        quaternion: Option<[f64; 4]>,
+    },
+    /// Streamed joint velocities, rad/s.
+    Jog {
+        /// Link velocities, rad/s.
+        #[serde(default)]
+        joint_velocities: Option<[f64; 6]>,
+        /// A tool twist (not supported yet: refused with a reason).
+        #[serde(default)]
+        tool_twist: Option<[f64; 6]>,
+        /// The twist's frame.
+        #[serde(default)]
+        frame: Option<String>,
+    },
+    /// Slows running and future trajectories and streams, 0 < f ≤ 1.
+    SetSpeedScaling {
+        /// The fraction of full speed.
+        fraction: f64,
+    },
+    /// Takes the motion lease for this connection.
+    Acquire {},
+    /// Gives the motion lease back.
+    Release {},
 }
 
 /// The longest error text an answer carries, bytes: a hostile request is never echoed whole.
@@ -143,20 +192,20 @@ pub fn read_model(dir: &Path, path: &Path) -> Result<Model, String> {
 /// then hands it over; refused if the setpoint or the model changed in between.
 fn plan_and_start(
     core: &Mutex<Core>,
+    client: ClientId,
     plan: impl FnOnce(&PlanBasis) -> Result<Move, MoveError>,
 ) -> Result<Value, CommandError> {
-    let basis = lock(core).plan_basis()?;
+    let basis = lock(core).plan_basis_for(client)?;
     let mv = plan(&basis)?;
     let d = mv.duration();
-    lock(core).submit(Command::Start {
-        mv: Box::new(mv),
-        basis,
-    })?;
+    lock(core).submit_from(
+        client,
+        Command::Start {
+            mv: Box::new(mv),
+            basis,
+        },
+    )?;
     Ok(json!({ "ok": true, "duration_s": d }))
-}
-
-fn submit(core: &Mutex<Core>, cmd: Command) -> Value {
-    answer(lock(core).submit(cmd).map(|()| json!({ "ok": true })))
 }
 
 /// Handles one request line; `Subscribe` is answered by [`serve`] (here: one status).
@@ -164,6 +213,18 @@ fn submit(core: &Mutex<Core>, cmd: Command) -> Value {
 /// The lock on the core is held only to read a snapshot or to apply a command: planning a
 /// move and parsing a model file happen outside it, so the 2 ms cycle never waits for them.
 pub fn handle(core: &Mutex<Core>, line: &str) -> Value {
+    handle_from(core, line, LOCAL)
+}
+
+/// As [`handle`], for the connection `client` (the motion lease is per connection).
+pub fn handle_from(core: &Mutex<Core>, line: &str, client: ClientId) -> Value {
+    let submit = |cmd| {
+        answer(
+            lock(core)
+                .submit_from(client, cmd)
+                .map(|()| json!({ "ok": true })),
+        )
+    };
     let req: Request = match serde_json::from_str(line) {
         Ok(r) => r,
         Err(e) => return err(format!("bad request: {e}")),
@@ -176,37 +237,115 @@ pub fn handle(core: &Mutex<Core>, line: &str) -> Value {
             }
             json!({ "ok": true, "status": c.status() })
         }
-        Request::MoveJoints { q } => answer(plan_and_start(core, |b| {
+        Request::MoveJoints { q } => answer(plan_and_start(core, client, |b| {
             Move::joints(&b.model, b.from, q, &b.speed, &b.acceleration)
         })),
         Request::MovePose {
             position,
             quaternion,
         } => {
-            let n = quaternion.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if !position.iter().chain(&quaternion).all(|v| v.is_finite()) || (n - 1.0).abs() > 1e-3
-            {
-                return err(format!(
-                    "position must be finite (m) and quaternion a unit [w, x, y, z] (norm {n})"
-                ));
-            }
-            let target = frame_from_pose(position, quaternion);
-            answer(plan_and_start(core, |b| {
+            let target = match pose_target(position, quaternion) {
+                Ok(t) => t,
+                Err(e) => return e,
+            };
+            answer(plan_and_start(core, client, |b| {
                 Move::cartesian(&b.model, b.from, target, &b.speed, &b.acceleration)
             }))
         }
-        Request::Stop {} => submit(core, Command::Stop),
-        Request::Estop {} => submit(core, Command::Estop),
-        Request::Reset {} => submit(core, Command::Reset),
-        Request::SetPayload { newtons } => submit(core, Command::SetPayload(newtons)),
+        Request::Stop {} => submit(Command::Stop),
+        Request::Estop {} => submit(Command::Estop),
+        Request::Reset {} => submit(Command::Reset),
+        Request::SetPayload { newtons } => submit(Command::SetPayload(newtons)),
         Request::LoadModel { path } => {
             let dir = lock(core).model_dir().to_path_buf();
             match read_model(&dir, Path::new(&path)) {
-                Ok(m) => submit(core, Command::LoadModel(Arc::new(m))),
+                Ok(m) => submit(Command::LoadModel(Arc::new(m))),
                 Err(e) => err(e),
             }
         }
+        Request::FollowTrajectory {
+            points,
+            path_tolerance,
+            goal_tolerance,
+            goal_time_tolerance,
+        } => {
+            let d = Tolerances::default();
+            let tolerances = Tolerances {
+                path: path_tolerance.unwrap_or(d.path),
+                goal: goal_tolerance.unwrap_or(d.goal),
+                goal_time_s: goal_time_tolerance.unwrap_or(d.goal_time_s),
+            };
+            let ok = |v: &f64| v.is_finite() && *v >= 0.0;
+            if !(tolerances.path.iter().all(ok)
+                && tolerances.goal.iter().all(ok)
+                && ok(&tolerances.goal_time_s))
+            {
+                return err("tolerances must be finite and ≥ 0 (rad; goal_time_tolerance in s)");
+            }
+            let mut c = lock(core);
+            match c.submit_from(client, Command::FollowTrajectory { points, tolerances }) {
+                Ok(()) => {
+                    let t = c.status().trajectory;
+                    json!({ "ok": true, "id": t.id })
+                }
+                Err(e) => err(e),
+            }
+        }
+        Request::Servo {
+            positions,
+            position,
+            quaternion,
+        } => match (positions, position, quaternion) {
+            (Some(q), None, None) => submit(Command::Stream(Stream::Servo(q))),
+            (None, Some(p), Some(o)) => {
+                let target = match pose_target(p, o) {
+                    Ok(t) => t,
+                    Err(e) => return e,
+                };
+                // the IK outside the lock, from the setpoint it will continue
+                let (model, from) = {
+                    let c = lock(core);
+                    match c.controller() {
+                        Some(ctl) => (ctl.model_arc().clone(), ctl.setpoint().q),
+                        None => return err(CommandError::NotReady("starting".into())),
+                    }
+                };
+                match model.ik_nearest(&target, &from) {
+                    Ok(q) => submit(Command::Stream(Stream::Servo(q))),
+                    Err(e) => err(format!("servo pose: {e}")),
+                }
+            }
+            _ => err(
+                "servo takes either \"positions\" (6, rad) or \"position\" (3, m) with \"quaternion\" (4)",
+            ),
+        },
+        Request::Jog {
+            joint_velocities,
+            tool_twist,
+            frame,
+        } => match (joint_velocities, tool_twist, frame) {
+            (Some(v), None, None) => submit(Command::Stream(Stream::Jog(v))),
+            (None, Some(_), _) => {
+                err("jog: tool_twist is not supported yet; send joint_velocities (rad/s)")
+            }
+            _ => err("jog takes \"joint_velocities\" (6, rad/s)"),
+        },
+        Request::SetSpeedScaling { fraction } => submit(Command::SetSpeedScaling(fraction)),
+        Request::Acquire {} => submit(Command::Acquire),
+        Request::Release {} => submit(Command::Release),
     }
+}
+
+/// A tool pose from a request: finite position (m) and a unit quaternion (w, x, y, z), or
+/// the refusal to answer with.
+fn pose_target(position: [f64; 3], quaternion: [f64; 4]) -> Result<crate::model::Frame, Value> {
+    let n = quaternion.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if !position.iter().chain(&quaternion).all(|v| v.is_finite()) || (n - 1.0).abs() > 1e-3 {
+        return Err(err(format!(
+            "position must be finite (m) and quaternion a unit [w, x, y, z] (norm {n})"
+        )));
+    }
+    Ok(frame_from_pose(position, quaternion))
 }
 
 /// Serves clients on `path` (created with `mode`) until `stop` turns true, at most
@@ -267,7 +406,10 @@ pub async fn serve(
         health.clients.fetch_add(1, Ordering::Relaxed);
         let (core, health) = (core.clone(), health.clone());
         tokio::spawn(async move {
-            connection(conn, core).await;
+            let id = NEXT_CLIENT.fetch_add(1, Ordering::Relaxed);
+            connection(conn, core.clone(), id).await;
+            // its lease ends with it (a controlled stop if it was moving the arm)
+            let _ = lock(&core).submit_from(id, Command::Disconnected);
             health.clients.fetch_sub(1, Ordering::Relaxed);
         });
     }
@@ -385,7 +527,10 @@ async fn read_line<R: tokio::io::AsyncBufRead + Unpin>(
 
 /// One client connection: lines in, answers out, until the client leaves, falls silent for
 /// [`IDLE_TIMEOUT_S`] or sends a line longer than [`MAX_LINE_BYTES`].
-async fn connection(conn: tokio::net::UnixStream, core: Arc<Mutex<Core>>) {
+/// Connection ids (0 is [`LOCAL`]).
+static NEXT_CLIENT: AtomicU64 = AtomicU64::new(1);
+
+async fn connection(conn: tokio::net::UnixStream, core: Arc<Mutex<Core>>, id: ClientId) {
     let (r, mut w) = conn.into_split();
     let mut r = BufReader::new(r);
     let mut buf = Vec::with_capacity(1024);
@@ -443,7 +588,7 @@ async fn connection(conn: tokio::net::UnixStream, core: Arc<Mutex<Core>>) {
         // Off the runtime's thread: planning takes about a millisecond, reading a model file
         // is blocking IO.
         let (c, l) = (core.clone(), line.to_string());
-        let work = tokio::task::spawn_blocking(move || handle(&c, &l));
+        let work = tokio::task::spawn_blocking(move || handle_from(&c, &l, id));
         let resp = match tokio::time::timeout(Duration::from_secs(REQUEST_TIMEOUT_S), work).await {
             Ok(Ok(r)) => r,
             Ok(Err(_)) => err("internal error while handling the request"),

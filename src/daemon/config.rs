@@ -126,6 +126,26 @@ fn default_controller_watchdog() -> f64 {
     50.0
 }
 
+/// Streamed commands (`servo`, `jog`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ServoConfig {
+    /// With no new servo setpoint or jog command for this long the arm makes a controlled
+    /// stop, ms (two cycles … 10 s; default 100).
+    #[serde(default = "default_servo_deadline")]
+    pub deadline_ms: f64,
+}
+
+fn default_servo_deadline() -> f64 {
+    100.0
+}
+
+fn default_servo() -> ServoConfig {
+    ServoConfig {
+        deadline_ms: default_servo_deadline(),
+    }
+}
+
 /// The client API socket.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -191,6 +211,9 @@ pub struct Config {
     /// Client API.
     #[serde(default = "default_api")]
     pub api: ApiConfig,
+    /// Streamed commands.
+    #[serde(default = "default_servo")]
+    pub servo: ServoConfig,
     /// Log filter (tracing syntax, e.g. `info`, `pa10=debug`).
     #[serde(default = "default_log")]
     pub log_level: String,
@@ -417,6 +440,7 @@ impl Config {
             255.0,
             "; the protocol's field is one byte",
         )?;
+        within("servo.deadline_ms", c.servo.deadline_ms, 10_000.0, "")?;
         if !(1..=1000).contains(&c.api.max_clients) {
             return Err(invalid(
                 "api.max_clients",

@@ -23,6 +23,7 @@
 
 use super::config::TorqueSource;
 use super::motion::{Move, MoveError, Setpoint};
+use super::trajectory::{JointLimits, Trajectory, TrajectoryError, TrajectoryPoint};
 use std::sync::Arc;
 
 use super::link::LinkError;
@@ -124,6 +125,20 @@ pub enum CommandError {
     /// The daemon is shutting down.
     #[error("shutting down")]
     ShuttingDown,
+    /// The trajectory cannot be followed.
+    #[error("trajectory refused: {0}")]
+    Trajectory(#[from] TrajectoryError),
+    /// A speed scaling outside (0, 1].
+    #[error("speed scaling must be within (0, 1], got {0}")]
+    Scaling(f64),
+    /// A streamed command that is not finite or beyond a limit.
+    #[error("{0}")]
+    Stream(String),
+    /// Another connection holds the motion lease.
+    #[error(
+        "another client holds the motion lease (acquire); only status, subscribe, stop and estop are allowed"
+    )]
+    Leased,
 }
 
 /// What the loop is doing.
@@ -138,6 +153,28 @@ pub enum Activity {
         /// Start time, s.
         start_s: f64,
     },
+    /// Following a timed trajectory.
+    Following {
+        /// The trajectory (boxed: planned once, not per cycle).
+        traj: Box<Trajectory>,
+        /// Trajectory time reached, s.
+        tau: f64,
+        /// Its tolerances.
+        tol: Tolerances,
+        /// When trajectory time reached the end, s (the goal time tolerance runs from here).
+        ended_s: Option<f64>,
+    },
+    /// Moving toward streamed setpoints (`servo`) or at streamed velocities (`jog`).
+    Streaming {
+        /// What the stream asks for.
+        stream: Stream,
+        /// When the last command of the stream came, s.
+        last_s: f64,
+        /// The servo target's own velocity, from its last two setpoints (rad/s; fed
+        /// forward so a moving target is followed without the lag a stop-at-target
+        /// profile would have).
+        target_v: [f64; 6],
+    },
     /// Decelerating to rest (a controlled stop), all joints together.
     Stopping {
         /// Per-joint deceleration, rad/s².
@@ -146,6 +183,78 @@ pub enum Activity {
     /// Stopped by a fault; zero speed until reset.
     Faulted(Fault),
 }
+
+/// What a stream asks for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Stream {
+    /// Move toward these link positions, rad, within the speed and acceleration limits.
+    Servo([f64; 6]),
+    /// Move at these link velocities, rad/s (ramped by the acceleration limits).
+    Jog([f64; 6]),
+}
+
+/// A trajectory's tolerances, per joint (0: not checked), as in `FollowJointTrajectory`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tolerances {
+    /// Largest |desired − actual| link position while executing, rad.
+    pub path: [f64; 6],
+    /// Largest |desired − actual| link position at the end, rad.
+    pub goal: [f64; 6],
+    /// How long after the trajectory's end the goal may still be reached, s.
+    pub goal_time_s: f64,
+}
+
+impl Default for Tolerances {
+    /// Path unchecked; goal 5 mrad per joint within 1 s.
+    fn default() -> Self {
+        Self {
+            path: [0.0; 6],
+            goal: [0.005; 6],
+            goal_time_s: 1.0,
+        }
+    }
+}
+
+/// A trajectory's state, for `status`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrajectoryState {
+    /// None started yet.
+    #[default]
+    Idle,
+    /// Being followed.
+    Executing,
+    /// Reached its goal within the tolerances.
+    Succeeded,
+    /// Stopped before its goal (see the result).
+    Aborted,
+    /// Replaced by a newer one, or by a move or a stream.
+    Preempted,
+}
+
+/// The latest trajectory, for `status`: `desired` is the setpoint, `actual` the link estimate
+/// (resolver angle minus the modelled deflection), `error` = desired − actual (rad).
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct TrajectoryStatus {
+    /// Its id (from 1; 0 before the first).
+    pub id: u64,
+    /// Its state.
+    pub state: TrajectoryState,
+    /// Why it ended: `""` while executing, `succeeded`, `path_tolerance_violated`,
+    /// `goal_tolerance_violated`, `preempted`, `stopped`, `fault`.
+    pub result: &'static str,
+    /// Desired link positions, rad.
+    pub desired: [f64; 6],
+    /// Estimated link positions, rad.
+    pub actual: [f64; 6],
+    /// desired − actual, rad.
+    pub error: [f64; 6],
+    /// Trajectory time reached / duration, 0…1.
+    pub progress: f64,
+}
+
+/// How long a speed-scaling change takes from 0 to 1, s (it ramps, so velocities do not jump).
+pub const SCALING_RAMP_S: f64 = 0.5;
 
 /// Loop parameters (from the daemon configuration).
 #[derive(Debug, Clone, PartialEq)]
@@ -170,6 +279,8 @@ pub struct LoopParams {
     pub following_error: f64,
     /// Feedback timeout, s.
     pub feedback_timeout_s: f64,
+    /// A servo or jog stream stops the arm when no command came for this long, s.
+    pub stream_deadline_s: f64,
 }
 
 /// The sans-IO controller.
@@ -186,6 +297,12 @@ pub struct Controller {
     /// Consecutive cycles without complete feedback.
     missed: u32,
     last_state: Option<JointState>,
+    /// Speed scaling in force (ramping toward `scaling_target`), 0 < f ≤ 1.
+    scaling: f64,
+    scaling_target: f64,
+    trajectory: TrajectoryStatus,
+    /// Why the last stream ended, for `status`.
+    stream_end: Option<&'static str>,
 }
 
 impl Controller {
@@ -210,6 +327,10 @@ impl Controller {
             last_feedback_s: first.stamp_s,
             missed: 0,
             last_state: Some(*first),
+            scaling: 1.0,
+            scaling_target: 1.0,
+            trajectory: TrajectoryStatus::default(),
+            stream_end: None,
         }
     }
 
@@ -234,8 +355,8 @@ impl Controller {
     pub fn ready_for_move(&self) -> Result<(), CommandError> {
         match &self.activity {
             Activity::Faulted(f) => Err(CommandError::Faulted(f.clone())),
-            Activity::Moving { .. } | Activity::Stopping { .. } => Err(CommandError::Busy),
             Activity::Holding => Ok(()),
+            _ => Err(CommandError::Busy),
         }
     }
 
@@ -243,7 +364,6 @@ impl Controller {
     pub fn start_move(&mut self, mv: impl Into<Box<Move>>, now_s: f64) -> Result<(), CommandError> {
         match &self.activity {
             Activity::Faulted(f) => Err(CommandError::Faulted(f.clone())),
-            Activity::Moving { .. } | Activity::Stopping { .. } => Err(CommandError::Busy),
             Activity::Holding => {
                 self.activity = Activity::Moving {
                     mv: mv.into(),
@@ -251,6 +371,192 @@ impl Controller {
                 };
                 Ok(())
             }
+            _ => Err(CommandError::Busy),
+        }
+    }
+
+    /// Position, speed and acceleration limits in force.
+    pub fn joint_limits(&self) -> JointLimits {
+        let lim = self.model.limits();
+        JointLimits {
+            lower: lim.lower,
+            upper: lim.upper,
+            speed: self.p.speed,
+            acceleration: self.p.acceleration,
+        }
+    }
+
+    /// Starts following `points` from the current setpoint (replacing a running trajectory,
+    /// move or stream without a jump in position or velocity); the whole trajectory is
+    /// checked first at the speed scaling in force. Returns its id.
+    pub fn start_trajectory(
+        &mut self,
+        points: &[TrajectoryPoint],
+        tol: Tolerances,
+    ) -> Result<u64, CommandError> {
+        match &self.activity {
+            Activity::Faulted(f) => return Err(CommandError::Faulted(f.clone())),
+            Activity::Stopping { .. } => return Err(CommandError::Busy),
+            _ => {}
+        }
+        let scaling = self.scaling.max(self.scaling_target);
+        let traj = Trajectory::plan(&self.setpoint, points, &self.joint_limits(), scaling)?;
+        self.end_trajectory(TrajectoryState::Preempted, "preempted");
+        self.trajectory = TrajectoryStatus {
+            id: self.trajectory.id + 1,
+            state: TrajectoryState::Executing,
+            result: "",
+            desired: self.setpoint.q,
+            actual: self.trajectory.actual,
+            error: [0.0; 6],
+            progress: 0.0,
+        };
+        self.activity = Activity::Following {
+            traj: Box::new(traj),
+            tau: 0.0,
+            tol,
+            ended_s: None,
+        };
+        Ok(self.trajectory.id)
+    }
+
+    /// The latest trajectory's state.
+    pub fn trajectory(&self) -> &TrajectoryStatus {
+        &self.trajectory
+    }
+
+    /// The speed scaling in force and the one asked for, 0 < f ≤ 1.
+    pub fn speed_scaling(&self) -> (f64, f64) {
+        (self.scaling, self.scaling_target)
+    }
+
+    /// Why the last servo or jog stream ended, if it did.
+    pub fn stream_end(&self) -> Option<&'static str> {
+        self.stream_end
+    }
+
+    /// Slows (or speeds up again) running and future trajectories: the scaling ramps to
+    /// `fraction` over at most [`SCALING_RAMP_S`]. Refused if what remains of the running
+    /// trajectory would exceed a limit at the faster scaling.
+    pub fn set_speed_scaling(&mut self, fraction: f64) -> Result<(), CommandError> {
+        if !(fraction.is_finite() && fraction > 0.0 && fraction <= 1.0) {
+            return Err(CommandError::Scaling(fraction));
+        }
+        if let Activity::Following { traj, tau, .. } = &self.activity
+            && fraction > self.scaling
+        {
+            traj.check_from(*tau, &self.joint_limits(), fraction)?;
+        }
+        self.scaling_target = fraction;
+        Ok(())
+    }
+
+    /// A streamed command at `now_s`: a servo target (link positions, rad, inside the
+    /// limits) or jog velocities (rad/s, within the speed limits). Starts the stream from
+    /// holding or continues one; refused during a move, a trajectory or a stop.
+    pub fn stream(&mut self, stream: Stream, now_s: f64) -> Result<(), CommandError> {
+        let lim = self.joint_limits();
+        let (v, what) = match &stream {
+            Stream::Servo(q) => (q, "servo position"),
+            Stream::Jog(v) => (v, "jog velocity"),
+        };
+        for j in 0..6 {
+            if !v[j].is_finite() {
+                return Err(CommandError::Stream(format!(
+                    "{what} of joint {} is not finite",
+                    j + 1
+                )));
+            }
+            let bad = match stream {
+                Stream::Servo(_) => v[j] < lim.lower[j] || v[j] > lim.upper[j],
+                Stream::Jog(_) => v[j].abs() > lim.speed[j],
+            };
+            if bad {
+                return Err(CommandError::Stream(match stream {
+                    Stream::Servo(_) => format!(
+                        "{what} of joint {}: {:.4} rad is outside [{:.4}, {:.4}] rad",
+                        j + 1,
+                        v[j],
+                        lim.lower[j],
+                        lim.upper[j]
+                    ),
+                    Stream::Jog(_) => format!(
+                        "{what} of joint {}: {:.4} rad/s is beyond the {:.4} rad/s limit",
+                        j + 1,
+                        v[j],
+                        lim.speed[j]
+                    ),
+                }));
+            }
+        }
+        let target_v = match (&self.activity, stream) {
+            (
+                Activity::Streaming {
+                    stream: Stream::Servo(old),
+                    last_s,
+                    ..
+                },
+                Stream::Servo(new),
+            ) if now_s > *last_s => std::array::from_fn(|j| {
+                ((new[j] - old[j]) / (now_s - last_s)).clamp(-lim.speed[j], lim.speed[j])
+            }),
+            _ => [0.0; 6],
+        };
+        match &self.activity {
+            Activity::Faulted(f) => Err(CommandError::Faulted(f.clone())),
+            Activity::Holding | Activity::Streaming { .. } => {
+                self.stream_end = None;
+                self.activity = Activity::Streaming {
+                    stream,
+                    last_s: now_s,
+                    target_v,
+                };
+                Ok(())
+            }
+            _ => Err(CommandError::Busy),
+        }
+    }
+
+    /// Marks the running trajectory as ended (no effect on any other activity).
+    fn end_trajectory(&mut self, state: TrajectoryState, result: &'static str) {
+        if self.trajectory.state == TrajectoryState::Executing {
+            self.trajectory.state = state;
+            self.trajectory.result = result;
+        }
+    }
+
+    /// One cycle of a stream: toward the servo target or at the jog velocity, each joint
+    /// within its speed (× scaling) and acceleration limits and braking before its range
+    /// ends. No allocation.
+    fn stream_step(&mut self, stream: Stream, target_v: &[f64; 6]) {
+        let dt = self.p.period_s;
+        let lim = self.joint_limits();
+        for j in 0..6 {
+            let (q, v) = (self.setpoint.q[j], self.setpoint.qd[j]);
+            let (vmax, a) = (lim.speed[j] * self.scaling, lim.acceleration[j]);
+            let want = match stream {
+                Stream::Servo(target) => {
+                    let e = target[j] - q;
+                    // the target's own speed, plus the fastest approach from which the
+                    // target can still be reached at rest
+                    let approach =
+                        e.signum() * vmax.min((2.0 * a * e.abs()).sqrt()).min(e.abs() / dt);
+                    (target_v[j] * self.scaling + approach).clamp(-vmax, vmax)
+                }
+                Stream::Jog(vel) => {
+                    let w = vel[j].clamp(-vmax, vmax);
+                    // brake before the range ends
+                    let room = if w > 0.0 {
+                        lim.upper[j] - q
+                    } else {
+                        q - lim.lower[j]
+                    };
+                    w.signum() * w.abs().min((2.0 * a * room.max(0.0)).sqrt())
+                }
+            };
+            let nv = v + (want - v).clamp(-a * dt, a * dt);
+            self.setpoint.q[j] = q + 0.5 * (v + nv) * dt;
+            self.setpoint.qd[j] = nv;
         }
     }
 
@@ -314,7 +620,11 @@ impl Controller {
     /// A controlled stop: the setpoint decelerates to rest within the acceleration limits,
     /// every joint reaching zero speed at the same instant. No effect unless moving.
     pub fn stop(&mut self) {
-        if matches!(self.activity, Activity::Moving { .. }) {
+        self.end_trajectory(TrajectoryState::Aborted, "stopped");
+        if matches!(
+            self.activity,
+            Activity::Moving { .. } | Activity::Following { .. } | Activity::Streaming { .. }
+        ) {
             let qd = self.setpoint.qd;
             let t = (0..6)
                 .map(|j| qd[j].abs() / self.p.acceleration[j])
@@ -373,6 +683,44 @@ impl Controller {
                 self.activity = Activity::Holding;
             }
         }
+        // the speed scaling ramps toward what was asked
+        let ramp = self.p.period_s / SCALING_RAMP_S;
+        self.scaling += (self.scaling_target - self.scaling).clamp(-ramp, ramp);
+        if let Activity::Following {
+            traj, tau, ended_s, ..
+        } = &mut self.activity
+        {
+            *tau = (*tau + self.scaling * self.p.period_s).min(traj.duration());
+            let s = traj.sample(*tau);
+            self.setpoint.q = s.q;
+            for j in 0..6 {
+                self.setpoint.qd[j] = if *tau < traj.duration() {
+                    self.scaling * s.qd[j]
+                } else {
+                    0.0
+                };
+            }
+            self.trajectory.progress = *tau / traj.duration();
+            if *tau >= traj.duration() && ended_s.is_none() {
+                *ended_s = Some(now_s);
+            }
+        }
+        if let Activity::Streaming {
+            stream,
+            last_s,
+            target_v,
+        } = self.activity
+        {
+            if now_s - last_s > self.p.stream_deadline_s {
+                self.stream_end = Some(match stream {
+                    Stream::Servo(_) => "servo: no setpoint within servo.deadline_ms; stopped",
+                    Stream::Jog(_) => "jog: no command within servo.deadline_ms; stopped",
+                });
+                self.stop();
+            } else {
+                self.stream_step(stream, &target_v);
+            }
+        }
         if let Activity::Stopping { decel } = self.activity {
             let dt = self.p.period_s;
             let mut moving = false;
@@ -422,6 +770,7 @@ impl Controller {
             };
         let lim = self.model.limits();
         let mut out = [0.0; 6];
+        let mut actual = [0.0; 6];
         for j in 0..6 {
             let e = target[j] - state.q_motor[j];
             if e.abs() > self.p.following_error {
@@ -440,19 +789,62 @@ impl Controller {
             }
             out[j] =
                 (self.setpoint.qd[j] + self.p.gain * e).clamp(-self.p.speed[j], self.p.speed[j]);
+            actual[j] = link;
         }
+        self.track(&actual, now_s);
         out
+    }
+
+    /// The trajectory's bookkeeping after a cycle: desired vs the link estimate, the path
+    /// tolerance while executing, the goal tolerance at the end.
+    fn track(&mut self, actual: &[f64; 6], now_s: f64) {
+        let t = &mut self.trajectory;
+        t.actual = *actual;
+        if t.state != TrajectoryState::Executing {
+            return;
+        }
+        t.desired = self.setpoint.q;
+        for j in 0..6 {
+            t.error[j] = t.desired[j] - actual[j];
+        }
+        let Activity::Following { tol, ended_s, .. } = &self.activity else {
+            return;
+        };
+        let beyond = |lim: &[f64; 6]| (0..6).any(|j| lim[j] > 0.0 && t.error[j].abs() > lim[j]);
+        let (off_path, off_goal) = (beyond(&tol.path), beyond(&tol.goal));
+        let late = ended_s.map(|end| now_s - end > tol.goal_time_s);
+        match late {
+            None if off_path => {
+                self.stop();
+                self.trajectory.state = TrajectoryState::Aborted;
+                self.trajectory.result = "path_tolerance_violated";
+            }
+            None => {}
+            Some(_) if !off_goal => {
+                t.state = TrajectoryState::Succeeded;
+                t.result = "succeeded";
+                self.activity = Activity::Holding;
+            }
+            Some(true) => {
+                t.state = TrajectoryState::Aborted;
+                t.result = "goal_tolerance_violated";
+                self.activity = Activity::Holding;
+            }
+            Some(false) => {}
+        }
     }
 
     /// Stops the arm for a fault found outside the cycle (the link, a client's emergency
     /// stop): zero speed until [`Controller::reset`]. An earlier fault is kept.
     pub fn halt(&mut self, f: Fault) {
         if !matches!(self.activity, Activity::Faulted(_)) {
+            self.end_trajectory(TrajectoryState::Aborted, "fault");
             self.activity = Activity::Faulted(f);
         }
     }
 
     fn fault(&mut self, f: Fault) -> [f64; 6] {
+        self.end_trajectory(TrajectoryState::Aborted, "fault");
         self.activity = Activity::Faulted(f);
         [0.0; 6]
     }

@@ -20,10 +20,14 @@ use std::sync::Arc;
 use serde::Serialize;
 
 use super::config::Loaded;
-use super::control::{Activity, CommandError, Controller, Fault, JointState, LoopParams};
+use super::control::{
+    Activity, CommandError, Controller, Fault, JointState, LoopParams, Stream, Tolerances,
+    TrajectoryStatus,
+};
 use super::link::{Link, LinkConfig, LinkCounters, LinkError, LinkEvent};
 use super::motion::Move;
 use super::stats::{CycleStats, Histogram};
+use super::trajectory::TrajectoryPoint;
 use crate::can::bus::{BusError, BusEvent};
 use crate::can::protocol::{Frame, Request, ServoState};
 use crate::model::Model;
@@ -65,7 +69,30 @@ pub enum Command {
     LoadModel(Arc<Model>),
     /// Bring the arm to rest, stop the servo and close the link.
     Shutdown,
+    /// Follow a timed trajectory from the current setpoint (replacing what runs).
+    FollowTrajectory {
+        /// The waypoints.
+        points: Vec<TrajectoryPoint>,
+        /// Its tolerances.
+        tolerances: Tolerances,
+    },
+    /// Slow running and future trajectories and streams, 0 < f ≤ 1.
+    SetSpeedScaling(f64),
+    /// A streamed servo target or jog velocity.
+    Stream(Stream),
+    /// Take the motion lease for the submitting client.
+    Acquire,
+    /// Give the motion lease back.
+    Release,
+    /// The submitting client's connection closed: its lease ends (stopping what it moved).
+    Disconnected,
 }
+
+/// Who submits a command: a connection's id, or [`LOCAL`] for in-process callers.
+pub type ClientId = u64;
+
+/// The in-process caller (the daemon itself, tests, examples).
+pub const LOCAL: ClientId = 0;
 
 /// What `status` reports.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -92,6 +119,14 @@ pub struct Status {
     pub link: LinkCounters,
     /// Cycle statistics.
     pub cycle: CycleStats,
+    /// The latest trajectory.
+    pub trajectory: TrajectoryStatus,
+    /// Speed scaling in force, 0 < f ≤ 1 (it ramps toward what was asked).
+    pub speed_scaling: f64,
+    /// Why the last servo or jog stream ended (a missed deadline), if it did.
+    pub stream_end: Option<&'static str>,
+    /// Whether a client holds the motion lease.
+    pub leased: bool,
 }
 
 /// How far the shutdown has come.
@@ -127,6 +162,8 @@ pub struct Core {
     syncs: u64,
     /// The only directory `load_model` reads from.
     model_dir: std::path::PathBuf,
+    /// The client holding the motion lease.
+    lease: Option<ClientId>,
 }
 
 impl Core {
@@ -157,6 +194,7 @@ impl Core {
             restarting: false,
             syncs: 0,
             model_dir: std::path::PathBuf::from("/etc/pa10d"),
+            lease: None,
         }
     }
 
@@ -174,6 +212,7 @@ impl Core {
             acceleration: c.limits.acceleration,
             following_error: c.limits.following_error,
             feedback_timeout_s: c.limits.feedback_timeout_ms * 1e-3,
+            stream_deadline_s: c.servo.deadline_ms * 1e-3,
         };
         let wd = c.limits.controller_watchdog_ms.round().clamp(1.0, 255.0) as u8;
         let link = LinkConfig::new(params.period_s, wd);
@@ -322,6 +361,14 @@ impl Core {
         })
     }
 
+    /// As [`Core::plan_basis`], refused when another client holds the motion lease.
+    pub fn plan_basis_for(&self, client: ClientId) -> Result<PlanBasis, CommandError> {
+        if self.lease.is_some_and(|holder| holder != client) {
+            return Err(CommandError::Leased);
+        }
+        self.plan_basis()
+    }
+
     /// What a move would be planned from now; refused unless a move could start.
     pub fn plan_basis(&self) -> Result<PlanBasis, CommandError> {
         let c = self.ready_controller()?;
@@ -335,9 +382,27 @@ impl Core {
         })
     }
 
-    /// Applies a client's command at the core's current time; a refusal changes nothing.
+    /// Applies an in-process command (as [`LOCAL`]); see [`Core::submit_from`].
     pub fn submit(&mut self, cmd: Command) -> Result<(), CommandError> {
+        self.submit_from(LOCAL, cmd)
+    }
+
+    /// Applies `client`'s command at the core's current time; a refusal changes nothing.
+    /// While another client holds the motion lease only `Stop`, `Estop`, `Shutdown` and
+    /// the lease commands are accepted.
+    pub fn submit_from(&mut self, client: ClientId, cmd: Command) -> Result<(), CommandError> {
         let now = self.now_s;
+        let always = matches!(
+            cmd,
+            Command::Stop
+                | Command::Estop
+                | Command::Shutdown
+                | Command::Release
+                | Command::Disconnected
+        );
+        if !always && self.lease.is_some_and(|holder| holder != client) {
+            return Err(CommandError::Leased);
+        }
         match cmd {
             Command::Start { mv, basis } => {
                 self.ready_controller()?.ready_for_move()?;
@@ -395,6 +460,34 @@ impl Core {
                     Ok(())
                 }
             },
+            Command::FollowTrajectory { points, tolerances } => {
+                self.ready_controller()?;
+                let c = self.controller_mut()?;
+                c.start_trajectory(&points, tolerances).map(|_| ())
+            }
+            Command::SetSpeedScaling(f) => {
+                self.ready_controller()?;
+                self.controller_mut()?.set_speed_scaling(f)
+            }
+            Command::Stream(st) => {
+                self.ready_controller()?;
+                self.controller_mut()?.stream(st, now)
+            }
+            Command::Acquire => {
+                self.lease = Some(client);
+                Ok(())
+            }
+            Command::Release | Command::Disconnected => {
+                if self.lease == Some(client) {
+                    self.lease = None;
+                    if matches!(cmd, Command::Disconnected)
+                        && let Some(c) = self.ctl.as_mut()
+                    {
+                        c.stop();
+                    }
+                }
+                Ok(())
+            }
             Command::Shutdown => {
                 match self.ctl.as_mut() {
                     Some(c) if self.link.is_running() => {
@@ -406,6 +499,17 @@ impl Core {
                 Ok(())
             }
         }
+    }
+
+    fn controller_mut(&mut self) -> Result<&mut Controller, CommandError> {
+        self.ctl
+            .as_mut()
+            .ok_or_else(|| CommandError::NotReady("starting".into()))
+    }
+
+    /// The client holding the motion lease.
+    pub fn lease(&self) -> Option<ClientId> {
+        self.lease
     }
 
     fn on(&mut self, ev: Option<LinkEvent>, now: f64) {
@@ -515,6 +619,8 @@ impl Core {
                     _ if self.restarting => "starting",
                     Activity::Holding => "holding",
                     Activity::Moving { .. } => "moving",
+                    Activity::Following { .. } => "following",
+                    Activity::Streaming { .. } => "streaming",
                     Activity::Stopping { .. } => "stopping",
                 };
                 (
@@ -544,6 +650,14 @@ impl Core {
                 compute_us: self.compute.summary(),
                 ..self.stats
             },
+            trajectory: self
+                .ctl
+                .as_ref()
+                .map(|c| *c.trajectory())
+                .unwrap_or_default(),
+            speed_scaling: self.ctl.as_ref().map_or(1.0, |c| c.speed_scaling().0),
+            stream_end: self.ctl.as_ref().and_then(|c| c.stream_end()),
+            leased: self.lease.is_some(),
         }
     }
 }

@@ -15,3 +15,4 @@ pub mod motion;
 pub mod realtime;
 pub mod runtime;
 pub mod stats;
+pub mod trajectory;

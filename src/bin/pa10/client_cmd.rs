@@ -56,6 +56,13 @@ pub enum MoveCmd {
     },
 }
 
+impl Conn {
+    /// The daemon's API socket.
+    pub fn socket(&self) -> &std::path::Path {
+        &self.socket
+    }
+}
+
 fn send(c: &Conn, req: &Value) -> Result<Value> {
     let mut s = UnixStream::connect(&c.socket).with_context(|| {
         format!(

@@ -10,6 +10,7 @@ mod collect_cmd;
 mod demo_cmd;
 mod discover_cmd;
 mod model_cmds;
+mod motion_cmd;
 mod sim_cmd;
 
 use std::process::ExitCode;
@@ -72,6 +73,19 @@ enum Command {
         /// The model YAML (a path the daemon can read).
         file: std::path::PathBuf,
     },
+    /// Daemon: follow a timed joint trajectory from a CSV or JSON file.
+    Trajectory(motion_cmd::TrajectoryArgs),
+    /// Daemon: stream setpoints from stdin (six link angles, rad, per line).
+    Servo(client_cmd::Conn),
+    /// Daemon: jog one joint at a link speed (rad/s) for a while.
+    Jog(motion_cmd::JogArgs),
+    /// Daemon: scale the speed of running and future trajectories (0 < F ≤ 1).
+    Speed {
+        #[command(flatten)]
+        conn: client_cmd::Conn,
+        /// Fraction of full speed.
+        fraction: f64,
+    },
     /// Daemon: stream its state.
     Watch {
         #[command(flatten)]
@@ -114,6 +128,13 @@ fn main() -> ExitCode {
             )
         }
         Command::Watch { conn, rate_hz } => client_cmd::watch(&conn, rate_hz),
+        Command::Trajectory(a) => motion_cmd::trajectory(&a),
+        Command::Servo(c) => motion_cmd::servo(&c),
+        Command::Jog(a) => motion_cmd::jog(&a),
+        Command::Speed { conn, fraction } => client_cmd::simple(
+            &conn,
+            serde_json::json!({"cmd": "set_speed_scaling", "fraction": fraction}),
+        ),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
