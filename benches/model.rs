@@ -112,6 +112,72 @@ fn bench(c: &mut Criterion) {
     c.bench_function("control cycle (Cartesian move, IK per setpoint)", |b| {
         b.iter(|| moving.step(black_box(0.01), Some(black_box(&js))))
     });
+    // trajectories: planning 50 points (under the control lock), sampling one (per cycle)
+    use pa10::daemon::control::{Stream, Tolerances};
+    use pa10::daemon::trajectory::{Trajectory, TrajectoryPoint};
+    let start = *hold.setpoint();
+    let points: Vec<TrajectoryPoint> = (1..=50)
+        .map(|i| {
+            let k = i as f64;
+            TrajectoryPoint {
+                positions: std::array::from_fn(|j| start.q[j] + 0.2 * (0.3 * k + j as f64).sin()),
+                velocities: None,
+                accelerations: None,
+                time_from_start: 2.0 * k,
+            }
+        })
+        .collect();
+    let lim = hold.joint_limits();
+    c.bench_function("trajectory plan + check (50 points, clamped spline)", |b| {
+        b.iter(|| Trajectory::plan(black_box(&start), black_box(&points), &lim, 1.0).expect("plan"))
+    });
+    let traj = Trajectory::plan(&start, &points, &lim, 1.0).expect("plan");
+    let mut tau = 0.0;
+    c.bench_function("trajectory sample (50 points)", |b| {
+        b.iter(|| {
+            tau = (tau + 0.002) % 100.0;
+            traj.sample(black_box(tau))
+        })
+    });
+    let mut following = Controller::new(m.clone(), params_for_bench(&hold), &js);
+    // the same path, 1000× slower: it lasts longer than the bench runs
+    let slow: Vec<TrajectoryPoint> = points
+        .iter()
+        .map(|p| TrajectoryPoint {
+            time_from_start: p.time_from_start * 1000.0,
+            ..*p
+        })
+        .collect();
+    following
+        .start_trajectory(&slow, Tolerances::default())
+        .expect("trajectory");
+    c.bench_function("control cycle (following a trajectory)", |b| {
+        b.iter(|| following.step(black_box(0.01), Some(black_box(&js))))
+    });
+    assert_eq!(
+        following.trajectory().state,
+        pa10::daemon::control::TrajectoryState::Executing
+    );
+    let mut servo = Controller::new(m.clone(), params_for_bench(&hold), &js);
+    let mut target = start.q;
+    target[0] += 0.3;
+    servo.stream(Stream::Servo(target), 0.0).expect("servo");
+    c.bench_function("control cycle (servo stream)", |b| {
+        b.iter(|| servo.step(black_box(0.01), Some(black_box(&js))))
+    });
+    assert!(matches!(
+        servo.activity(),
+        pa10::daemon::control::Activity::Streaming { .. }
+    ));
+}
+
+/// The loop parameters of `c` with no following-error limit (the bench's feedback stands
+/// still while the setpoint moves; a fault would measure nothing).
+fn params_for_bench(c: &pa10::daemon::control::Controller) -> pa10::daemon::control::LoopParams {
+    pa10::daemon::control::LoopParams {
+        following_error: 1e9,
+        ..c.params().clone()
+    }
 }
 
 criterion_group!(benches, bench);

@@ -369,8 +369,9 @@ fn a_paused_control_thread_is_not_a_silent_controller() {
     drop(arm);
     std::fs::remove_dir_all(&dir).unwrap();
     assert_eq!(after.state, "holding", "{:?}", after.fault);
+    // the pauses happened (most of them delay a cycle past its period)
     assert!(
-        after.cycle.overruns >= before.cycle.overruns + 10,
+        after.cycle.overruns >= before.cycle.overruns + 5,
         "{after:?}"
     );
     // (before the fix: 7 of 10 pauses cost a cycle and the first one a stale-feedback fault;

@@ -375,6 +375,11 @@ impl Controller {
         }
     }
 
+    /// The loop parameters.
+    pub fn params(&self) -> &LoopParams {
+        &self.p
+    }
+
     /// Position, speed and acceleration limits in force.
     pub fn joint_limits(&self) -> JointLimits {
         let lim = self.model.limits();
