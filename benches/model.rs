@@ -86,6 +86,7 @@ fn bench(c: &mut Criterion) {
         filter_hz: 20.0,
         torque_constants: [15.0, 30.0, 15.0, 5.0, 5.0, 2.0],
         payload_n: 44.0,
+        payload_com: [0.0; 3],
         speed: [0.5, 0.5, 1.0, 2.0, 2.0, 2.0],
         acceleration: [1.0, 1.0, 2.0, 4.0, 4.0, 4.0],
         following_error: 0.05,

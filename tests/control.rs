@@ -22,6 +22,7 @@ fn params() -> LoopParams {
         filter_hz: 20.0,
         torque_constants: SIM_TORQUE_CONSTANTS,
         payload_n: 0.0,
+        payload_com: [0.0; 3],
         speed: VMAX,
         acceleration: AMAX,
         following_error: 0.01,
@@ -141,7 +142,7 @@ fn mean_error_mm(model: &Model, truth: &TrueRobot, load_n: f64) -> f64 {
     lp.sim.set_load(load_n);
     let first = lp.feedback().unwrap();
     let mut ctl = Controller::new(model.clone(), params(), &first);
-    ctl.set_payload(load_n).unwrap();
+    ctl.set_payload(load_n, [0.0; 3]).unwrap();
     lp.run(&mut ctl, 0.2);
     let mut sum = 0.0;
     let ts = targets();
@@ -273,8 +274,13 @@ fn a_resolver_jump_is_a_following_error_and_a_controller_fault_stops_too() {
     ctl.step(lp.t, fb.as_ref());
     assert_eq!(ctl.activity(), &Activity::Faulted(Fault::Controller));
     // bad requests leave it as it was
-    assert!(ctl.set_payload(-1.0).is_err());
-    assert!(ctl.set_payload(f64::NAN).is_err());
+    assert!(ctl.set_payload(-1.0, [0.0; 3]).is_err());
+    assert!(ctl.set_payload(f64::NAN, [0.0; 3]).is_err());
+    assert!(
+        ctl.set_payload(10.0, [0.0, 0.0, 2.0]).is_err(),
+        "a CoM 2 m away"
+    );
+    assert!(ctl.set_payload(10.0, [f64::NAN, 0.0, 0.0]).is_err());
 }
 
 #[test]

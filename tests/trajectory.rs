@@ -334,3 +334,62 @@ fn one_commander_at_a_time_with_the_lease() {
 fn lock(ls: &Lockstep) -> std::sync::MutexGuard<'_, pa10::daemon::core::Core> {
     pa10::daemon::runtime::lock(&ls.core)
 }
+
+#[test]
+fn payload_by_mass_and_centre_of_mass_and_a_new_tool_take_effect_at_once() {
+    let mut ls = lockstep("payload", &Model::nominal());
+    let r = ls.call(&json!({"cmd": "set_payload", "mass_kg": 2.0, "com": [0.1, 0.0, 0.05]}));
+    assert_eq!(r["ok"], true, "{r}");
+    let st = status(&ls);
+    assert!(
+        (st["payload_n"].as_f64().unwrap() - 2.0 * 9.80665).abs() < 1e-9,
+        "{st}"
+    );
+    assert_eq!(st["payload_com"], json!([0.1, 0.0, 0.05]));
+    for (req, why) in [
+        (
+            json!({"cmd": "set_payload", "mass_kg": 2.0, "newtons": 3.0}),
+            "either",
+        ),
+        (json!({"cmd": "set_payload"}), "either"),
+        (
+            json!({"cmd": "set_payload", "newtons": 3.0, "com": [0.0, 0.0, 2.0]}),
+            "within 1 m",
+        ),
+        (json!({"cmd": "set_payload", "mass_kg": -1.0}), "0…500 N"),
+        (
+            json!({"cmd": "set_tool", "translation": [0.0, 0.0, 0.1], "quaternion": [1.0, 1.0, 0.0, 0.0]}),
+            "unit",
+        ),
+    ] {
+        let r = ls.call(&req);
+        assert!(r["error"].as_str().unwrap().contains(why), "{req}: {r}");
+    }
+    // a longer tool: the reported tool position moves 0.1 m along the tool's z axis
+    let before = status(&ls);
+    let r = ls.call(&json!({"cmd": "set_tool", "translation": [0.0, 0.0, 0.1], "quaternion": [1.0, 0.0, 0.0, 0.0]}));
+    assert_eq!(r["ok"], true, "{r}");
+    let after = status(&ls);
+    let p = |v: &Value| -> nalgebra::Vector3<f64> {
+        nalgebra::Vector3::from(
+            serde_json::from_value::<[f64; 3]>(v["tool_position"].clone()).unwrap(),
+        )
+    };
+    assert!(
+        ((p(&after) - p(&before)).norm() - 0.1).abs() < 1e-9,
+        "{before} → {after}"
+    );
+    assert_eq!(
+        after["setpoint"], before["setpoint"],
+        "the arm does not move"
+    );
+    // not during motion
+    let r = ls.call(&json!({"cmd": "move_joints", "q": [0.3, 0.5, 1.4, 0.2, 1.0, 0.3]}));
+    assert_eq!(r["ok"], true, "{r}");
+    ls.run_for(0.1);
+    let r = ls.call(&json!({"cmd": "set_tool", "translation": [0.0, 0.0, 0.0], "quaternion": [1.0, 0.0, 0.0, 0.0]}));
+    assert!(
+        r["error"].as_str().unwrap().contains("during a move"),
+        "{r}"
+    );
+}

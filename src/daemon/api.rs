@@ -46,10 +46,26 @@ pub enum Request {
     Estop {},
     /// Clears a fault.
     Reset {},
-    /// Sets the payload hung at the tool, N.
+    /// Sets the payload: its weight (`newtons`, or `mass_kg` under the model's gravity) and
+    /// its centre of mass in the tool frame (`com`, m; default the tool origin).
     SetPayload {
-        /// Newtons.
-        newtons: f64,
+        /// Weight, N.
+        #[serde(default)]
+        newtons: Option<f64>,
+        /// Mass, kg.
+        #[serde(default)]
+        mass_kg: Option<f64>,
+        /// Centre of mass in the tool frame, m.
+        #[serde(default)]
+        com: Option<[f64; 3]>,
+    },
+    /// Sets the tool transform (flange → tool): translation, m, and a unit quaternion
+    /// w, x, y, z. Compensation and Cartesian commands use it at once.
+    SetTool {
+        /// Translation, m.
+        translation: [f64; 3],
+        /// Unit quaternion w, x, y, z.
+        quaternion: [f64; 4],
     },
     /// Hot-reloads a model file between moves.
     LoadModel {
@@ -255,7 +271,33 @@ pub fn handle_from(core: &Mutex<Core>, line: &str, client: ClientId) -> Value {
         Request::Stop {} => submit(Command::Stop),
         Request::Estop {} => submit(Command::Estop),
         Request::Reset {} => submit(Command::Reset),
-        Request::SetPayload { newtons } => submit(Command::SetPayload(newtons)),
+        Request::SetPayload {
+            newtons,
+            mass_kg,
+            com,
+        } => {
+            let newtons = match (newtons, mass_kg) {
+                (Some(n), None) => n,
+                (None, Some(m)) => {
+                    let g = lock(core)
+                        .controller()
+                        .map_or(9.80665, |c| c.model().gravity().norm());
+                    m * g
+                }
+                _ => return err("set_payload takes either \"newtons\" (N) or \"mass_kg\" (kg)"),
+            };
+            submit(Command::SetPayload {
+                newtons,
+                com: com.unwrap_or([0.0; 3]),
+            })
+        }
+        Request::SetTool {
+            translation,
+            quaternion,
+        } => match pose_target(translation, quaternion) {
+            Ok(tool) => submit(Command::SetTool(Box::new(tool))),
+            Err(e) => e,
+        },
         Request::LoadModel { path } => {
             let dir = lock(core).model_dir().to_path_buf();
             match read_model(&dir, Path::new(&path)) {

@@ -131,14 +131,28 @@ pub enum CommandError {
     /// A speed scaling outside (0, 1].
     #[error("speed scaling must be within (0, 1], got {0}")]
     Scaling(f64),
-    /// A streamed command that is not finite or beyond a limit.
+    /// An argument that is not finite or beyond a limit.
     #[error("{0}")]
-    Stream(String),
+    Invalid(String),
     /// Another connection holds the motion lease.
     #[error(
         "another client holds the motion lease (acquire); only status, subscribe, stop and estop are allowed"
     )]
     Leased,
+}
+
+/// Checks a payload: weight within 0…500 N, centre of mass finite and within 1 m of the
+/// tool origin.
+pub fn check_payload(newtons: f64, com: &[f64; 3]) -> Result<(), CommandError> {
+    if !(newtons.is_finite() && (0.0..=500.0).contains(&newtons)) {
+        return Err(CommandError::Payload(newtons));
+    }
+    if !com.iter().all(|c| c.is_finite()) || com.iter().map(|c| c * c).sum::<f64>() > 1.0 {
+        return Err(CommandError::Invalid(format!(
+            "payload centre of mass {com:?} m must be finite and within 1 m of the tool origin"
+        )));
+    }
+    Ok(())
 }
 
 /// What the loop is doing.
@@ -271,6 +285,8 @@ pub struct LoopParams {
     pub torque_constants: [f64; 6],
     /// Payload hung at the tool, N.
     pub payload_n: f64,
+    /// The payload's centre of mass in the tool frame, m.
+    pub payload_com: [f64; 3],
     /// Speed limits, rad/s.
     pub speed: [f64; 6],
     /// Acceleration limits (controlled stops), rad/s².
@@ -309,7 +325,7 @@ impl Controller {
     /// A controller holding the arm where `first` says it is.
     pub fn new(model: impl Into<Arc<Model>>, p: LoopParams, first: &JointState) -> Self {
         let model = model.into();
-        let load = ExternalLoad::hung(p.payload_n, &model.gravity());
+        let load = ExternalLoad::hung_at(p.payload_n, &model.gravity(), &p.payload_com);
         let q_link = model
             .link_from_motor(&first.q_motor, Torques::Gravity(&load), &NO_DIRECTION)
             .map(|c| c.q_link)
@@ -467,7 +483,7 @@ impl Controller {
         };
         for j in 0..6 {
             if !v[j].is_finite() {
-                return Err(CommandError::Stream(format!(
+                return Err(CommandError::Invalid(format!(
                     "{what} of joint {} is not finite",
                     j + 1
                 )));
@@ -477,7 +493,7 @@ impl Controller {
                 Stream::Jog(_) => v[j].abs() > lim.speed[j],
             };
             if bad {
-                return Err(CommandError::Stream(match stream {
+                return Err(CommandError::Invalid(match stream {
                     Stream::Servo(_) => format!(
                         "{what} of joint {}: {:.4} rad is outside [{:.4}, {:.4}] rad",
                         j + 1,
@@ -577,13 +593,23 @@ impl Controller {
         Ok(())
     }
 
-    /// Sets the payload hung at the tool, N.
-    pub fn set_payload(&mut self, newtons: f64) -> Result<(), CommandError> {
-        if !(newtons.is_finite() && (0.0..=500.0).contains(&newtons)) {
-            return Err(CommandError::Payload(newtons));
-        }
+    /// Sets the payload: its weight, N (0…500), and its centre of mass in the tool frame,
+    /// m (within 1 m of the tool origin). Used by the compensation (model torques) at once.
+    pub fn set_payload(&mut self, newtons: f64, com: [f64; 3]) -> Result<(), CommandError> {
+        check_payload(newtons, &com)?;
         self.p.payload_n = newtons;
+        self.p.payload_com = com;
         Ok(())
+    }
+
+    /// The payload as a load on the model.
+    fn load(&self) -> ExternalLoad {
+        ExternalLoad::hung_at(self.p.payload_n, &self.model.gravity(), &self.p.payload_com)
+    }
+
+    /// The payload's centre of mass in the tool frame, m.
+    pub fn payload_com(&self) -> [f64; 3] {
+        self.p.payload_com
     }
 
     /// Move limits in use: speed (rad/s) and acceleration (rad/s²).
@@ -609,7 +635,7 @@ impl Controller {
     /// Clears a fault: hold where the arm is now.
     pub fn reset(&mut self) {
         if let (Activity::Faulted(_), Some(s)) = (&self.activity, self.last_state) {
-            let load = ExternalLoad::hung(self.p.payload_n, &self.model.gravity());
+            let load = self.load();
             self.setpoint = Setpoint {
                 q: self
                     .model
@@ -745,7 +771,7 @@ impl Controller {
             }
         }
         // torques
-        let load = ExternalLoad::hung(self.p.payload_n, &self.model.gravity());
+        let load = self.load();
         let tau = match self.p.torque_source {
             TorqueSource::Model => self.model.static_torques(&self.setpoint.q, &load),
             TorqueSource::Measured => {

@@ -22,7 +22,7 @@ use serde::Serialize;
 use super::config::Loaded;
 use super::control::{
     Activity, CommandError, Controller, Fault, JointState, LoopParams, Stream, Tolerances,
-    TrajectoryStatus,
+    TrajectoryStatus, check_payload,
 };
 use super::link::{Link, LinkConfig, LinkCounters, LinkError, LinkEvent};
 use super::motion::Move;
@@ -63,8 +63,15 @@ pub enum Command {
     Estop,
     /// Clear a fault; bring the controller back to control mode when it left it.
     Reset,
-    /// The weight hung at the tool, N.
-    SetPayload(f64),
+    /// The payload: weight, N, and centre of mass in the tool frame, m.
+    SetPayload {
+        /// Weight, N.
+        newtons: f64,
+        /// Centre of mass in the tool frame, m.
+        com: [f64; 3],
+    },
+    /// A new tool transform (flange → tool): compensation and Cartesian commands use it.
+    SetTool(Box<crate::model::Frame>),
     /// Replace the model between moves (parsed by the caller).
     LoadModel(Arc<Model>),
     /// Bring the arm to rest, stop the servo and close the link.
@@ -115,6 +122,8 @@ pub struct Status {
     pub tool_quaternion: [f64; 4],
     /// Payload, N.
     pub payload_n: f64,
+    /// The payload's centre of mass in the tool frame, m.
+    pub payload_com: [f64; 3],
     /// Link counters.
     pub link: LinkCounters,
     /// Cycle statistics.
@@ -208,6 +217,7 @@ impl Core {
             filter_hz: c.control.current_filter_hz,
             torque_constants: c.torque_constants,
             payload_n: c.payload_n,
+            payload_com: [0.0; 3],
             speed: c.limits.speed,
             acceleration: c.limits.acceleration,
             following_error: c.limits.following_error,
@@ -443,16 +453,31 @@ impl Core {
                 }
                 Ok(())
             }
-            Command::SetPayload(n) => match self.ctl.as_mut() {
-                Some(c) => c.set_payload(n),
+            Command::SetPayload { newtons, com } => match self.ctl.as_mut() {
+                Some(c) => c.set_payload(newtons, com),
                 None => {
-                    if !(n.is_finite() && (0.0..=500.0).contains(&n)) {
-                        return Err(CommandError::Payload(n));
-                    }
-                    self.params.payload_n = n;
+                    check_payload(newtons, &com)?;
+                    self.params.payload_n = newtons;
+                    self.params.payload_com = com;
                     Ok(())
                 }
             },
+            Command::SetTool(tool) => {
+                let model = match &self.ctl {
+                    Some(c) => c.model_arc().clone(),
+                    None => self.model.clone(),
+                };
+                let m = model
+                    .with_tool(&tool)
+                    .map_err(|e| CommandError::Invalid(format!("tool: {e}")))?;
+                match self.ctl.as_mut() {
+                    Some(c) => c.load_model(m),
+                    None => {
+                        self.model = Arc::new(m);
+                        Ok(())
+                    }
+                }
+            }
             Command::LoadModel(m) => match self.ctl.as_mut() {
                 Some(c) => c.load_model(m),
                 None => {
@@ -644,6 +669,10 @@ impl Core {
             tool_position: p,
             tool_quaternion: q,
             payload_n: payload,
+            payload_com: self
+                .ctl
+                .as_ref()
+                .map_or(self.params.payload_com, |c| c.payload_com()),
             link: self.link.counters(),
             cycle: CycleStats {
                 jitter_us: self.jitter.summary(),

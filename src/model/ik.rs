@@ -262,7 +262,12 @@ impl Model {
         reference: &[f64; 6],
         dir: &[f64; 6],
     ) -> Result<super::statics::Compensation, IkError> {
-        if !load.force.iter().all(|v| v.is_finite()) {
+        if !load
+            .force
+            .iter()
+            .chain(load.at.iter())
+            .all(|v| v.is_finite())
+        {
             return Err(IkError::NonFinite);
         }
         let q_link = self.ik_nearest(target, reference)?;

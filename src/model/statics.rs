@@ -8,17 +8,21 @@ use nalgebra::Vector3;
 use super::kinematics::Frame;
 use super::robot::{Model, ModelError};
 
-/// An external force acting at the tool frame origin, newtons, base frame.
+/// An external force acting at a point of the tool frame (its origin unless said), newtons,
+/// base frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ExternalLoad {
-    /// Force on the robot at the tool origin, N, base frame.
+    /// Force on the robot, N, base frame.
     pub force: Vector3<f64>,
+    /// Where it acts, in the tool frame, m (a payload's centre of mass; zero: the tool origin).
+    pub at: Vector3<f64>,
 }
 
 impl ExternalLoad {
     /// No external force.
     pub const NONE: Self = Self {
         force: Vector3::new(0.0, 0.0, 0.0),
+        at: Vector3::new(0.0, 0.0, 0.0),
     };
 
     /// A weight of `newtons` (≥ 0) hung at the tool, pulling along `gravity` (the model's
@@ -32,6 +36,15 @@ impl ExternalLoad {
         };
         Self {
             force: dir * newtons,
+            at: Vector3::zeros(),
+        }
+    }
+
+    /// A weight of `newtons` whose centre of mass is at `com` in the tool frame (m).
+    pub fn hung_at(newtons: f64, gravity: &Vector3<f64>, com: &[f64; 3]) -> Self {
+        Self {
+            at: Vector3::from(*com),
+            ..Self::hung(newtons, gravity)
         }
     }
 }
@@ -69,7 +82,7 @@ impl Model {
                 m.frame,
             );
         }
-        let p_tool = (f[6] * self.tool).translation.vector;
+        let p_tool = (f[6] * self.tool * nalgebra::Point3::from(load.at)).coords;
         let mut tau = [0.0; 6];
         for (j, t) in tau.iter_mut().enumerate() {
             let z = f[j].rotation.matrix().column(2).into_owned();
@@ -283,5 +296,32 @@ fn check_finite(key: &str, v: &[f64; 6]) -> Result<(), ModelError> {
             key: format!("{key}[{j}]"),
             reason: format!("must be finite, got {}", v[j]),
         }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_payloads_centre_of_mass_off_the_tool_axis_adds_its_lever_arm() {
+        let m = Model::nominal();
+        let q = [0.0; 6];
+        let g = m.gravity();
+        // upright and rigid-free: at the origin a hung load loads no joint …
+        let at_origin = m.static_torques(&q, &ExternalLoad::hung(50.0, &g));
+        assert!(at_origin.iter().all(|t| t.abs() < 1e-9), "{at_origin:?}");
+        // … 0.1 m off along the tool x axis it is 5 N·m on every horizontal axis it crosses
+        let off = m.static_torques(&q, &ExternalLoad::hung_at(50.0, &g, &[0.1, 0.0, 0.0]));
+        let lever =
+            (m.fk(&q) * nalgebra::Point3::new(0.1, 0.0, 0.0)).coords - m.fk(&q).translation.vector;
+        let expect = 50.0 * lever.xy().norm();
+        assert!((expect - 5.0).abs() < 1e-9);
+        let loaded: Vec<f64> = off.iter().filter(|t| t.abs() > 1e-9).copied().collect();
+        assert!(!loaded.is_empty(), "{off:?}");
+        assert!(
+            loaded.iter().all(|t| (t.abs() - expect).abs() < 1e-6),
+            "{off:?}"
+        );
     }
 }
