@@ -393,3 +393,104 @@ fn payload_by_mass_and_centre_of_mass_and_a_new_tool_take_effect_at_once() {
         "{r}"
     );
 }
+
+#[test]
+fn a_cartesian_trajectory_keeps_the_tool_on_straight_lines_between_its_waypoints() {
+    let mut ls = lockstep("cartesian", &Model::nominal());
+    let model = Model::nominal();
+    let start = model.fk(&six(&status(&ls)["setpoint"]));
+    let (p0, q0) = pa10::model::pose_parts(&start);
+    let p1 = [p0[0] - 0.08, p0[1] + 0.10, p0[2] - 0.05];
+    let p2 = [p0[0] - 0.08, p0[1] - 0.05, p0[2] - 0.10];
+    let pts = json!([
+        {"position": p1, "quaternion": q0, "time_from_start": 2.0},
+        {"position": p2, "quaternion": q0, "time_from_start": 4.0},
+    ]);
+    let r = ls.call(&json!({"cmd": "follow_cartesian", "points": pts}));
+    assert_eq!(r["ok"], true, "{r}");
+    // distance of a point from the segment a–b, m
+    let off = |p: nalgebra::Vector3<f64>, a: [f64; 3], b: [f64; 3]| {
+        let (a, b) = (nalgebra::Vector3::from(a), nalgebra::Vector3::from(b));
+        let t = ((p - a).dot(&(b - a)) / (b - a).norm_squared()).clamp(0.0, 1.0);
+        (p - (a + t * (b - a))).norm()
+    };
+    let mut worst = 0.0f64;
+    loop {
+        ls.run_for(PERIOD);
+        let st = status(&ls);
+        let t = &st["trajectory"];
+        let p = model.fk(&six(&t["desired"])).translation.vector;
+        let d = off(p, p0, p1).min(off(p, p1, p2));
+        worst = worst.max(d);
+        if t["state"] != "executing" {
+            assert_eq!(t["state"], "succeeded", "{st}");
+            break;
+        }
+        assert!(ls.now() < 10.0);
+    }
+    let end = model.fk(&six(&status(&ls)["setpoint"])).translation.vector;
+    assert!((end - nalgebra::Vector3::from(p2)).norm() < 1e-6, "{end}");
+    eprintln!(
+        "cartesian: worst distance from the straight lines {:.3} mm",
+        worst * 1e3
+    );
+    assert!(worst < 0.2e-3, "{worst} m");
+    // a waypoint out of reach is refused with its number; nothing moves
+    let far = json!([
+        {"position": p1, "quaternion": q0, "time_from_start": 2.0},
+        {"position": [3.0, 0.0, 0.5], "quaternion": q0, "time_from_start": 4.0},
+    ]);
+    let r = ls.call(&json!({"cmd": "follow_cartesian", "points": far}));
+    assert!(r["error"].as_str().unwrap().contains("waypoint 1,"), "{r}");
+    let bad = json!([{"position": p1, "quaternion": [1.0, 1.0, 0.0, 0.0], "time_from_start": 2.0}]);
+    let r = ls.call(&json!({"cmd": "follow_cartesian", "points": bad}));
+    assert!(r["error"].as_str().unwrap().contains("waypoint 0"), "{r}");
+    assert_eq!(status(&ls)["state"], "holding");
+}
+
+#[test]
+fn a_tool_twist_jog_moves_the_tool_along_the_asked_direction() {
+    let mut ls = lockstep("twist", &Model::nominal());
+    let model = Model::nominal();
+    let f0 = model.fk(&six(&status(&ls)["setpoint"]));
+    for _ in 0..20 {
+        let r = ls.call(&json!({"cmd": "jog", "tool_twist": [0.0, 0.0, 0.05, 0.0, 0.0, 0.0]}));
+        assert_eq!(r["ok"], true, "{r}");
+        ls.run_for(0.05);
+    }
+    let f1 = model.fk(&six(&status(&ls)["setpoint"]));
+    let d = f1.translation.vector - f0.translation.vector;
+    eprintln!("twist jog: moved {d:?} m");
+    assert!(d.z > 0.04 && d.z < 0.05, "{d}");
+    assert!(d.xy().norm() < 0.01 * d.z, "straight up: {d}");
+    assert!(
+        (f1.rotation * f0.rotation.inverse()).angle() < 1e-3,
+        "orientation kept"
+    );
+    // in the tool frame (pointing along the tool's own z), and refusals
+    let r = ls.call(
+        &json!({"cmd": "jog", "tool_twist": [0.0, 0.0, 0.0, 0.0, 0.0, 0.1], "frame": "tool"}),
+    );
+    assert_eq!(r["ok"], true, "{r}");
+    for (req, why) in [
+        (
+            json!({"cmd": "jog", "tool_twist": [1.0, 0.0, 0.0, 0.0, 0.0, 0.0]}),
+            "within 0.25 m/s",
+        ),
+        (
+            json!({"cmd": "jog", "tool_twist": [0.0, 0.0, 0.0, 0.0, 0.0, 0.1], "frame": "world"}),
+            "\"base\" or \"tool\"",
+        ),
+        (json!({"cmd": "jog"}), "joint_velocities"),
+    ] {
+        let r = ls.call(&req);
+        assert!(r["error"].as_str().unwrap().contains(why), "{req}: {r}");
+    }
+    assert!(ls.run_while_not(1.0, |l| status(l)["state"] == "holding"));
+    assert!(
+        status(&ls)["stream_end"]
+            .as_str()
+            .unwrap()
+            .starts_with("jog:")
+    );
+}

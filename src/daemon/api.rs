@@ -17,7 +17,7 @@ use tokio::net::UnixListener;
 use super::control::CommandError;
 use super::control::{Stream, Tolerances};
 use super::core::{ClientId, Command, Core, LOCAL, PlanBasis};
-use super::motion::{Move, MoveError};
+use super::motion::{CartesianPoint, Move, MoveError, cartesian_waypoints};
 use super::runtime::lock;
 use super::trajectory::TrajectoryPoint;
 use crate::model::{Model, frame_from_pose};
@@ -91,6 +91,20 @@ pub enum Request {
         #[serde(default)]
         goal_time_tolerance: Option<f64>,
     },
+    /// Follows tool-pose waypoints, straight lines between them (from holding).
+    FollowCartesian {
+        /// Waypoints.
+        points: Vec<CartesianPoint>,
+        /// Per-joint path tolerance, rad (0: unchecked; default unchecked).
+        #[serde(default)]
+        path_tolerance: Option<[f64; 6]>,
+        /// Per-joint goal tolerance, rad (0: unchecked; default 0.005).
+        #[serde(default)]
+        goal_tolerance: Option<[f64; 6]>,
+        /// Time after the end the goal may still be reached, s (default 1).
+        #[serde(default)]
+        goal_time_tolerance: Option<f64>,
+    },
     /// A streamed setpoint: link positions (rad), or a tool pose.
     Servo {
         /// Link positions, rad.
@@ -108,10 +122,10 @@ pub enum Request {
         /// Link velocities, rad/s.
         #[serde(default)]
         joint_velocities: Option<[f64; 6]>,
-        /// A tool twist (not supported yet: refused with a reason).
+        /// A tool twist: vx, vy, vz (m/s), wx, wy, wz (rad/s).
         #[serde(default)]
         tool_twist: Option<[f64; 6]>,
-        /// The twist's frame.
+        /// The twist's frame: `base` (default) or `tool`.
         #[serde(default)]
         frame: Option<String>,
     },
@@ -311,26 +325,30 @@ pub fn handle_from(core: &Mutex<Core>, line: &str, client: ClientId) -> Value {
             goal_tolerance,
             goal_time_tolerance,
         } => {
-            let d = Tolerances::default();
-            let tolerances = Tolerances {
-                path: path_tolerance.unwrap_or(d.path),
-                goal: goal_tolerance.unwrap_or(d.goal),
-                goal_time_s: goal_time_tolerance.unwrap_or(d.goal_time_s),
+            let tolerances = match tolerances(path_tolerance, goal_tolerance, goal_time_tolerance) {
+                Ok(t) => t,
+                Err(e) => return e,
             };
-            let ok = |v: &f64| v.is_finite() && *v >= 0.0;
-            if !(tolerances.path.iter().all(ok)
-                && tolerances.goal.iter().all(ok)
-                && ok(&tolerances.goal_time_s))
-            {
-                return err("tolerances must be finite and ≥ 0 (rad; goal_time_tolerance in s)");
-            }
-            let mut c = lock(core);
-            match c.submit_from(client, Command::FollowTrajectory { points, tolerances }) {
-                Ok(()) => {
-                    let t = c.status().trajectory;
-                    json!({ "ok": true, "id": t.id })
-                }
-                Err(e) => err(e),
+            follow(core, client, points, tolerances, None)
+        }
+        Request::FollowCartesian {
+            points,
+            path_tolerance,
+            goal_tolerance,
+            goal_time_tolerance,
+        } => {
+            let tolerances = match tolerances(path_tolerance, goal_tolerance, goal_time_tolerance) {
+                Ok(t) => t,
+                Err(e) => return e,
+            };
+            // the IK of every sample outside the lock, from the setpoint held now
+            let basis = match lock(core).plan_basis_for(client) {
+                Ok(b) => b,
+                Err(e) => return err(e),
+            };
+            match cartesian_waypoints(&basis.model, basis.from, &points) {
+                Ok(joints) => follow(core, client, joints, tolerances, Some(basis)),
+                Err(e) => err(format!("trajectory refused: {e}")),
             }
         }
         Request::Servo {
@@ -367,14 +385,63 @@ pub fn handle_from(core: &Mutex<Core>, line: &str, client: ClientId) -> Value {
             frame,
         } => match (joint_velocities, tool_twist, frame) {
             (Some(v), None, None) => submit(Command::Stream(Stream::Jog(v))),
-            (None, Some(_), _) => {
-                err("jog: tool_twist is not supported yet; send joint_velocities (rad/s)")
+            (None, Some(twist), frame) => {
+                let tool_frame = match frame.as_deref() {
+                    None | Some("base") => false,
+                    Some("tool") => true,
+                    Some(_) => return err("jog: frame must be \"base\" or \"tool\""),
+                };
+                submit(Command::Stream(Stream::Twist { twist, tool_frame }))
             }
-            _ => err("jog takes \"joint_velocities\" (6, rad/s)"),
+            _ => err(
+                "jog takes \"joint_velocities\" (6, rad/s) or \"tool_twist\" (vx, vy, vz m/s, wx, wy, wz rad/s) with an optional \"frame\": \"base\" | \"tool\"",
+            ),
         },
         Request::SetSpeedScaling { fraction } => submit(Command::SetSpeedScaling(fraction)),
         Request::Acquire {} => submit(Command::Acquire),
         Request::Release {} => submit(Command::Release),
+    }
+}
+
+/// A trajectory request's tolerances with their defaults, or the refusal to answer with.
+fn tolerances(
+    path: Option<[f64; 6]>,
+    goal: Option<[f64; 6]>,
+    goal_time: Option<f64>,
+) -> Result<Tolerances, Value> {
+    let d = Tolerances::default();
+    let t = Tolerances {
+        path: path.unwrap_or(d.path),
+        goal: goal.unwrap_or(d.goal),
+        goal_time_s: goal_time.unwrap_or(d.goal_time_s),
+    };
+    let ok = |v: &f64| v.is_finite() && *v >= 0.0;
+    if t.path.iter().all(ok) && t.goal.iter().all(ok) && ok(&t.goal_time_s) {
+        Ok(t)
+    } else {
+        Err(err(
+            "tolerances must be finite and ≥ 0 (rad; goal_time_tolerance in s)",
+        ))
+    }
+}
+
+/// Hands a joint trajectory to the core: `{"ok":true,"id":N}` or the refusal.
+fn follow(
+    core: &Mutex<Core>,
+    client: ClientId,
+    points: Vec<TrajectoryPoint>,
+    tolerances: Tolerances,
+    basis: Option<PlanBasis>,
+) -> Value {
+    let mut c = lock(core);
+    let cmd = Command::FollowTrajectory {
+        points,
+        tolerances,
+        basis,
+    };
+    match c.submit_from(client, cmd) {
+        Ok(()) => json!({ "ok": true, "id": c.controller().map_or(0, |c| c.trajectory().id) }),
+        Err(e) => err(e),
     }
 }
 

@@ -205,7 +205,20 @@ pub enum Stream {
     Servo([f64; 6]),
     /// Move at these link velocities, rad/s (ramped by the acceleration limits).
     Jog([f64; 6]),
+    /// Move the tool at this twist: linear velocity of the tool origin (m/s) then angular
+    /// velocity (rad/s), in the base frame or (`tool_frame`) the tool's own axes.
+    Twist {
+        /// vx, vy, vz (m/s), wx, wy, wz (rad/s).
+        twist: [f64; 6],
+        /// Whether the twist is expressed in the tool frame.
+        tool_frame: bool,
+    },
 }
+
+/// Largest linear speed of a tool-twist jog, m/s.
+pub const MAX_TWIST_LINEAR: f64 = 0.25;
+/// Largest angular speed of a tool-twist jog, rad/s.
+pub const MAX_TWIST_ANGULAR: f64 = 0.5;
 
 /// A trajectory's tolerances, per joint (0: not checked), as in `FollowJointTrajectory`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -477,9 +490,22 @@ impl Controller {
     /// holding or continues one; refused during a move, a trajectory or a stop.
     pub fn stream(&mut self, stream: Stream, now_s: f64) -> Result<(), CommandError> {
         let lim = self.joint_limits();
+        if let Stream::Twist { twist, .. } = &stream {
+            let n = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let (lin, ang) = (n(&twist[..3]), n(&twist[3..]));
+            if !(lin.is_finite() && ang.is_finite())
+                || lin > MAX_TWIST_LINEAR
+                || ang > MAX_TWIST_ANGULAR
+            {
+                return Err(CommandError::Invalid(format!(
+                    "tool twist: {lin:.4} m/s and {ang:.4} rad/s must be finite and within {MAX_TWIST_LINEAR} m/s and {MAX_TWIST_ANGULAR} rad/s"
+                )));
+            }
+        }
         let (v, what) = match &stream {
             Stream::Servo(q) => (q, "servo position"),
             Stream::Jog(v) => (v, "jog velocity"),
+            Stream::Twist { .. } => (&[0.0; 6], "tool twist"),
         };
         for j in 0..6 {
             if !v[j].is_finite() {
@@ -491,6 +517,7 @@ impl Controller {
             let bad = match stream {
                 Stream::Servo(_) => v[j] < lim.lower[j] || v[j] > lim.upper[j],
                 Stream::Jog(_) => v[j].abs() > lim.speed[j],
+                Stream::Twist { .. } => false,
             };
             if bad {
                 return Err(CommandError::Invalid(match stream {
@@ -501,7 +528,7 @@ impl Controller {
                         lim.lower[j],
                         lim.upper[j]
                     ),
-                    Stream::Jog(_) => format!(
+                    Stream::Jog(_) | Stream::Twist { .. } => format!(
                         "{what} of joint {}: {:.4} rad/s is beyond the {:.4} rad/s limit",
                         j + 1,
                         v[j],
@@ -538,6 +565,52 @@ impl Controller {
         }
     }
 
+    /// Joint velocities (rad/s) that move the tool at `twist` from the current setpoint, by
+    /// the model's Jacobian (numerical, 7 forward kinematics, no allocation); scaled down as a
+    /// whole (direction kept) to the speed limits × scaling. `None` near a singularity,
+    /// where that would need more than ten times a joint's speed limit.
+    fn twist_to_joints(&self, twist: &[f64; 6], tool_frame: bool) -> Option<[f64; 6]> {
+        use nalgebra::{Matrix6, Vector3, Vector6};
+        let q = self.setpoint.q;
+        let f0 = self.model.fk(&q);
+        let h = 1e-7;
+        let mut jac = Matrix6::zeros();
+        for j in 0..6 {
+            let mut qh = q;
+            qh[j] += h;
+            let f1 = self.model.fk(&qh);
+            let dp = (f1.translation.vector - f0.translation.vector) / h;
+            let dr = (f1.rotation * f0.rotation.inverse()).scaled_axis() / h;
+            for r in 0..3 {
+                jac[(r, j)] = dp[r];
+                jac[(r + 3, j)] = dr[r];
+            }
+        }
+        let (mut v, mut w) = (
+            Vector3::new(twist[0], twist[1], twist[2]),
+            Vector3::new(twist[3], twist[4], twist[5]),
+        );
+        if tool_frame {
+            v = f0.rotation * v;
+            w = f0.rotation * w;
+        }
+        let qd = jac
+            .lu()
+            .solve(&Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z))?;
+        let lim = self.joint_limits();
+        let mut scale = 1.0f64;
+        for j in 0..6 {
+            let vmax = lim.speed[j] * self.scaling;
+            if !qd[j].is_finite() || qd[j].abs() > 10.0 * lim.speed[j] {
+                return None;
+            }
+            if qd[j].abs() > vmax {
+                scale = scale.min(vmax / qd[j].abs());
+            }
+        }
+        Some(std::array::from_fn(|j| qd[j] * scale))
+    }
+
     /// Marks the running trajectory as ended (no effect on any other activity).
     fn end_trajectory(&mut self, state: TrajectoryState, result: &'static str) {
         if self.trajectory.state == TrajectoryState::Executing {
@@ -552,6 +625,19 @@ impl Controller {
     fn stream_step(&mut self, stream: Stream, target_v: &[f64; 6]) {
         let dt = self.p.period_s;
         let lim = self.joint_limits();
+        let stream = match stream {
+            Stream::Twist { twist, tool_frame } => match self.twist_to_joints(&twist, tool_frame) {
+                Some(v) => Stream::Jog(v),
+                None => {
+                    self.stream_end = Some(
+                        "jog: the tool twist needs joint speeds beyond the limits here (near a singularity); stopped",
+                    );
+                    self.stop();
+                    return;
+                }
+            },
+            s => s,
+        };
         for j in 0..6 {
             let (q, v) = (self.setpoint.q[j], self.setpoint.qd[j]);
             let (vmax, a) = (lim.speed[j] * self.scaling, lim.acceleration[j]);
@@ -564,7 +650,8 @@ impl Controller {
                         e.signum() * vmax.min((2.0 * a * e.abs()).sqrt()).min(e.abs() / dt);
                     (target_v[j] * self.scaling + approach).clamp(-vmax, vmax)
                 }
-                Stream::Jog(vel) => {
+                // (a twist was turned into joint velocities above)
+                Stream::Jog(vel) | Stream::Twist { twist: vel, .. } => {
                     let w = vel[j].clamp(-vmax, vmax);
                     // brake before the range ends
                     let room = if w > 0.0 {
@@ -745,7 +832,9 @@ impl Controller {
             if now_s - last_s > self.p.stream_deadline_s {
                 self.stream_end = Some(match stream {
                     Stream::Servo(_) => "servo: no setpoint within servo.deadline_ms; stopped",
-                    Stream::Jog(_) => "jog: no command within servo.deadline_ms; stopped",
+                    Stream::Jog(_) | Stream::Twist { .. } => {
+                        "jog: no command within servo.deadline_ms; stopped"
+                    }
                 });
                 self.stop();
             } else {

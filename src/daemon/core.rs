@@ -82,6 +82,9 @@ pub enum Command {
         points: Vec<TrajectoryPoint>,
         /// Its tolerances.
         tolerances: Tolerances,
+        /// What the points were planned from (a Cartesian trajectory's IK): refused as
+        /// stale if the setpoint or the model changed since. `None`: from whatever runs.
+        basis: Option<PlanBasis>,
     },
     /// Slow running and future trajectories and streams, 0 < f ≤ 1.
     SetSpeedScaling(f64),
@@ -485,9 +488,18 @@ impl Core {
                     Ok(())
                 }
             },
-            Command::FollowTrajectory { points, tolerances } => {
+            Command::FollowTrajectory {
+                points,
+                tolerances,
+                basis,
+            } => {
                 self.ready_controller()?;
                 let c = self.controller_mut()?;
+                if let Some(b) = basis
+                    && (!Arc::ptr_eq(&b.model, c.model_arc()) || b.from != c.setpoint().q)
+                {
+                    return Err(CommandError::Stale);
+                }
                 c.start_trajectory(&points, tolerances).map(|_| ())
             }
             Command::SetSpeedScaling(f) => {
