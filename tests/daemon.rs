@@ -541,6 +541,38 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     );
     let o = pa10(&["move", "pose", "3", "0", "0.5", "0", "1", "0", "0"]);
     assert_eq!(o.status.code(), Some(1));
+    // the motion commands of docs/motion.md
+    for args in [
+        &["payload", "--mass", "2", "--com", "0.1", "0", "0.05"][..],
+        &["payload", "0"],
+        &["tool", "0", "0", "0", "1", "0", "0", "0"],
+        &["speed", "0.8"],
+        &["jog", "6", "0.1", "--for", "0.2"],
+    ] {
+        let o = pa10(args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let o = pa10(&["speed", "1.5"]);
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("speed scaling must be within (0, 1]"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let traj = dir.join("path.csv");
+    std::fs::write(
+        &traj,
+        "time_from_start,q1,q2,q3,q4,q5,q6\n0.8,0.1,0.46,1.54,0,1.1,-0.1\n1.6,0.1,0.45,1.55,0,1.1,-0.1\n",
+    )
+    .unwrap();
+    let o = pa10(&["trajectory", traj.to_str().unwrap(), "--wait"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("succeeded"));
+    let o = pa10(&["speed", "1"]);
+    assert!(o.status.success());
     // pa10 collect drives it through a pose list and records resolver angles and currents …
     let poses = dir.join("poses.csv");
     std::fs::write(

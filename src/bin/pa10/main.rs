@@ -59,12 +59,29 @@ enum Command {
     Estop(client_cmd::Conn),
     /// Daemon: clear a fault and bring the servo back to control mode.
     Reset(client_cmd::Conn),
-    /// Daemon: set the weight hung at the tool, N.
+    /// Daemon: set the payload: its weight (N, or --mass kg) and centre of mass (--com, tool frame, m).
+    #[command(allow_negative_numbers = true)]
     Payload {
         #[command(flatten)]
         conn: client_cmd::Conn,
         /// Newtons.
-        newtons: f64,
+        #[arg(required_unless_present = "mass", conflicts_with = "mass")]
+        newtons: Option<f64>,
+        /// Mass, kg (instead of newtons).
+        #[arg(long)]
+        mass: Option<f64>,
+        /// Centre of mass in the tool frame, m.
+        #[arg(long, num_args = 3, value_names = ["X", "Y", "Z"])]
+        com: Option<Vec<f64>>,
+    },
+    /// Daemon: set the tool transform (flange → tool): X Y Z (m) QW QX QY QZ.
+    #[command(allow_negative_numbers = true)]
+    Tool {
+        #[command(flatten)]
+        conn: client_cmd::Conn,
+        /// Translation and unit quaternion.
+        #[arg(num_args = 7, required = true)]
+        pose: Vec<f64>,
     },
     /// Daemon: load a (calibrated) model file between moves.
     LoadModel {
@@ -116,9 +133,26 @@ fn main() -> ExitCode {
         Command::Stop(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "stop"})),
         Command::Estop(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "estop"})),
         Command::Reset(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "reset"})),
-        Command::Payload { conn, newtons } => client_cmd::simple(
+        Command::Payload {
+            conn,
+            newtons,
+            mass,
+            com,
+        } => {
+            let mut req = serde_json::json!({"cmd": "set_payload"});
+            match (newtons, mass) {
+                (Some(n), _) => req["newtons"] = n.into(),
+                (None, Some(m)) => req["mass_kg"] = m.into(),
+                (None, None) => {}
+            }
+            if let Some(c) = com {
+                req["com"] = c.into();
+            }
+            client_cmd::simple(&conn, req)
+        }
+        Command::Tool { conn, pose } => client_cmd::simple(
             &conn,
-            serde_json::json!({"cmd": "set_payload", "newtons": newtons}),
+            serde_json::json!({"cmd": "set_tool", "translation": &pose[..3], "quaternion": &pose[3..]}),
         ),
         Command::LoadModel { conn, file } => {
             let path = std::fs::canonicalize(&file).unwrap_or(file);

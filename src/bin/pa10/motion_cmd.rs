@@ -236,8 +236,12 @@ pub fn jog(a: &JogArgs) -> Result<()> {
         std::thread::sleep(Duration::from_millis(20));
     }
     s.call(&json!({"cmd": "stop"}))?;
+    crate::client_cmd::wait_settled(
+        &mut crate::client_cmd::Socket(a.conn.clone()),
+        Duration::from_secs(10),
+    )?;
     println!(
-        "jogged joint {} at {} rad/s for {} s",
+        "jogged joint {} at {} rad/s for {} s; at rest",
         a.joint, a.speed, a.seconds
     );
     Ok(())
