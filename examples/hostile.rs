@@ -14,9 +14,6 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use pa10::daemon::api::{ApiHealth, handle, serve};
-use pa10::daemon::runtime::Daemon;
-use pa10::sim::rig::SimulatedArm;
 use serde_json::Value;
 
 mod common;
@@ -36,32 +33,14 @@ struct Run {
 
 fn run(secs: f64, fifo: bool, hostile: bool, dir: &Path) -> Run {
     let mut cfg = common::sim_config(500.0, if hostile { "hostile" } else { "quiet" });
-    cfg.config.control.realtime.sched_fifo_priority = fifo.then_some(80);
     // load_model's confinement is judged in the run's own folder (its secret.yaml included)
     cfg.model_dir = dir.to_path_buf();
-    let (truth, seed) = pa10::sim::rig::truth_for(&cfg).expect("truth");
-    let arm = SimulatedArm::start_with_priority(truth, seed, fifo.then_some(81)).expect("arm");
-    let d = Daemon::start(&cfg, arm.host()).expect("daemon");
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime");
     let path = dir.join(if hostile {
         "hostile.sock"
     } else {
         "quiet.sock"
     });
-    let (stop, stop_rx) = tokio::sync::watch::channel(false);
-    let server = {
-        let (p, core) = (path.clone(), d.core.clone());
-        rt.spawn(async move {
-            serve(&p, 0o600, 64, core, Arc::new(ApiHealth::default()), stop_rx).await
-        })
-    };
-    while !path.exists() {
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    let served = common::Served::start(&mut cfg, fifo, &path);
     let rss0 = suite::rss_kib();
     let t0 = Instant::now();
     let requests = Arc::new(suite::requests(dir));
@@ -95,12 +74,9 @@ fn run(secs: f64, fifo: bool, hostile: bool, dir: &Path) -> Run {
         (mover.join().expect("the good client failed"), refused)
     };
     let seconds = t0.elapsed().as_secs_f64();
-    let status = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
+    let status = served.status();
     let rss_grown_kib = suite::rss_kib().saturating_sub(rss0);
-    let _ = stop.send(true);
-    let _ = rt.block_on(server);
-    drop(d);
-    drop(arm);
+    served.stop();
     Run {
         status,
         moves: moves.0,

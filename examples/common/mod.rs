@@ -40,3 +40,62 @@ pub fn triple(v: &Value) -> String {
         v[2].as_f64().unwrap_or(0.0)
     )
 }
+
+/// The real-time daemon on the simulated arm of `cfg` (control thread SCHED_FIFO 80 and the
+/// simulated controller 81 when `fifo`) with its socket server at `path`.
+#[allow(dead_code)] // not every example serves a socket
+pub struct Served {
+    /// The daemon.
+    pub daemon: Daemon,
+    arm: SimulatedArm,
+    rt: tokio::runtime::Runtime,
+    stop: tokio::sync::watch::Sender<bool>,
+    task: tokio::task::JoinHandle<std::io::Result<()>>,
+}
+
+#[allow(dead_code)]
+impl Served {
+    /// Starts both and waits for the socket.
+    pub fn start(cfg: &mut Loaded, fifo: bool, path: &std::path::Path) -> Self {
+        cfg.config.control.realtime.sched_fifo_priority = fifo.then_some(80);
+        let (truth, seed) = pa10::sim::rig::truth_for(cfg).expect("truth");
+        let arm = SimulatedArm::start_with_priority(truth, seed, fifo.then_some(81)).expect("arm");
+        let daemon = Daemon::start(cfg, arm.host()).expect("daemon");
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(2)
+            .enable_all()
+            .build()
+            .expect("runtime");
+        let (stop, stop_rx) = tokio::sync::watch::channel(false);
+        let task = {
+            let (p, core) = (path.to_path_buf(), daemon.core.clone());
+            let health = std::sync::Arc::new(pa10::daemon::api::ApiHealth::default());
+            rt.spawn(
+                async move { pa10::daemon::api::serve(&p, 0o600, 64, core, health, stop_rx).await },
+            )
+        };
+        while !path.exists() {
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        Self {
+            daemon,
+            arm,
+            rt,
+            stop,
+            task,
+        }
+    }
+
+    /// The daemon's status now.
+    pub fn status(&self) -> Value {
+        pa10::daemon::api::handle(&self.daemon.core, r#"{"cmd":"status"}"#)["status"].clone()
+    }
+
+    /// Stops serving, the daemon (the arm at rest first) and the simulated arm.
+    pub fn stop(self) {
+        let _ = self.stop.send(true);
+        let _ = self.rt.block_on(self.task);
+        drop(self.daemon);
+        drop(self.arm);
+    }
+}
