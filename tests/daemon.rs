@@ -573,6 +573,46 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("succeeded"));
     let o = pa10(&["speed", "1"]);
     assert!(o.status.success());
+    // pa10 servo: setpoints from stdin, then silence: the daemon stops the arm by itself
+    let mut servo = std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
+        .arg("servo")
+        .env("PA10D_SOCKET", &sock)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        let mut stdin = servo.stdin.take().unwrap();
+        for k in 0..50 {
+            let q6 = -0.1 + 0.0004 * k as f64;
+            writeln!(stdin, "0.1 0.45 1.55 0 1.1 {q6}").unwrap();
+            std::thread::sleep(Duration::from_millis(4));
+        }
+    }
+    let out = servo.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("50 setpoints sent"));
+    let end = Instant::now() + Duration::from_secs(5);
+    let st = loop {
+        let o = pa10(&["status", "--json"]);
+        let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+        if v["status"]["state"] == "holding" || Instant::now() > end {
+            break v;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(st["status"]["state"], "holding", "{st}");
+    assert!(
+        st["status"]["stream_end"]
+            .as_str()
+            .is_some_and(|e| e.contains("servo.deadline_ms")),
+        "{st}"
+    );
     // pa10 collect drives it through a pose list and records resolver angles and currents …
     let poses = dir.join("poses.csv");
     std::fs::write(

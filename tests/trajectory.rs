@@ -494,3 +494,25 @@ fn a_tool_twist_jog_moves_the_tool_along_the_asked_direction() {
             .starts_with("jog:")
     );
 }
+
+#[test]
+fn a_servo_pose_stream_moves_the_tool_to_the_streamed_pose() {
+    let mut ls = lockstep("servo-pose", &Model::nominal());
+    let model = Model::nominal();
+    let goal_q = [0.05, 0.45, 1.55, 0.05, 1.05, 0.05];
+    let (p, q) = pa10::model::pose_parts(&model.fk(&goal_q));
+    for _ in 0..400 {
+        let r = ls.call(&json!({"cmd": "servo", "position": p, "quaternion": q}));
+        assert_eq!(r["ok"], true, "{r}");
+        ls.run_for(PERIOD);
+    }
+    let sp = six(&status(&ls)["setpoint"]);
+    assert!((0..6).all(|j| (sp[j] - goal_q[j]).abs() < 1e-6), "{sp:?}");
+    let r = ls.call(&json!({"cmd": "servo", "position": [3.0, 0.0, 0.5], "quaternion": q}));
+    assert!(
+        r["error"].as_str().unwrap().starts_with("servo pose:"),
+        "{r}"
+    );
+    let r = ls.call(&json!({"cmd": "servo", "positions": goal_q, "position": p}));
+    assert!(r["error"].as_str().unwrap().contains("either"), "{r}");
+}
