@@ -16,6 +16,7 @@
 //! - [`stats`]: the distribution functions the tests of calibration and discovery need.
 //! - [`sim`]: the simulated PA10 (hidden truth, servo controller, campaigns).
 //! - [`can`] and [`daemon`]: the protocol, buses and the control daemon's core.
+//! - [`record`]: recording every control cycle to MCAP, and reading recordings back.
 //!
 //! Units are SI throughout: metres, radians, newtons, newton-metres, seconds.
 //! Joint vectors are `[f64; 6]` ordered J1 … J6 (S1, S2, E1, E2, W1, W2).
@@ -37,5 +38,6 @@ pub mod discover;
 pub mod model;
 pub mod noise;
 pub mod plot;
+pub mod record;
 pub mod sim;
 pub mod stats;

@@ -14,5 +14,6 @@ mod independent;
 mod model;
 mod model_file;
 mod properties;
+mod record;
 mod servo;
 mod trajectory;

@@ -134,6 +134,17 @@ pub enum Request {
         /// The fraction of full speed.
         fraction: f64,
     },
+    /// Starts recording every cycle to an MCAP file inside `record.dir`.
+    RecordStart {
+        /// A plain file name (default `pa10d-<unix time>.mcap`).
+        #[serde(default)]
+        file: Option<String>,
+        /// Stop after this long, s (default: until `record_stop`).
+        #[serde(default)]
+        duration_s: Option<f64>,
+    },
+    /// Stops recording.
+    RecordStop {},
     /// Takes the motion lease for this connection.
     Acquire {},
     /// Gives the motion lease back.
@@ -398,6 +409,38 @@ pub fn handle_from(core: &Mutex<Core>, line: &str, client: ClientId) -> Value {
             ),
         },
         Request::SetSpeedScaling { fraction } => submit(Command::SetSpeedScaling(fraction)),
+        Request::RecordStart { file, duration_s } => {
+            if let Some(d) = duration_s
+                && !(d.is_finite() && d > 0.0 && d <= 86_400.0)
+            {
+                return err("duration_s must be within (0, 86400] s");
+            }
+            let (cfg, now, busy) = {
+                let c = lock(core);
+                (c.record_config().clone(), c.now_s(), c.is_recording())
+            };
+            if busy {
+                return err("a recording is running; record_stop first");
+            }
+            let name = file.unwrap_or_else(|| {
+                let t = std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map_or(0, |d| d.as_secs());
+                format!("pa10d-{t}.mcap")
+            });
+            // the file is created here, outside the control lock
+            match crate::record::Recorder::start(&cfg, &name, duration_s.map(|d| now + d)) {
+                Ok(tap) => {
+                    let path = tap.stats.status(true).path;
+                    match lock(core).submit_from(client, Command::Record(Box::new(tap))) {
+                        Ok(()) => json!({ "ok": true, "path": path }),
+                        Err(e) => err(e),
+                    }
+                }
+                Err(e) => err(e),
+            }
+        }
+        Request::RecordStop {} => submit(Command::RecordStop),
         Request::Acquire {} => submit(Command::Acquire),
         Request::Release {} => submit(Command::Release),
     }

@@ -214,6 +214,9 @@ pub struct Config {
     /// Streamed commands.
     #[serde(default = "default_servo")]
     pub servo: ServoConfig,
+    /// Recording every cycle (MCAP).
+    #[serde(default)]
+    pub record: crate::record::RecordConfig,
     /// Log filter (tracing syntax, e.g. `info`, `pa10=debug`).
     #[serde(default = "default_log")]
     pub log_level: String,
@@ -296,6 +299,8 @@ pub struct Loaded {
     pub socket_mode: u32,
     /// `api.model_dir`, resolved against the configuration's folder.
     pub model_dir: PathBuf,
+    /// `record`, its folder resolved against the configuration's folder.
+    pub record: crate::record::RecordConfig,
 }
 
 impl Config {
@@ -483,6 +488,9 @@ impl Config {
             _ => {}
         }
         let model_dir = base.join(&self.api.model_dir);
+        self.record.validate().map_err(|e| invalid("record", e))?;
+        let mut record = self.record.clone();
+        record.dir = base.join(&record.dir);
         Ok(Loaded {
             config: self,
             model_path,
@@ -490,6 +498,7 @@ impl Config {
             bus_load,
             socket_mode,
             model_dir,
+            record,
         })
     }
 }

@@ -332,6 +332,19 @@ pub struct Controller {
     trajectory: TrajectoryStatus,
     /// Why the last stream ended, for `status`.
     stream_end: Option<&'static str>,
+    /// What the last cycle computed.
+    out: CycleOutput,
+}
+
+/// What one cycle computed (for recordings): torques used, motor target, speeds sent.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CycleOutput {
+    /// Torque estimate, N·m.
+    pub tau: [f64; 6],
+    /// Motor target, rad.
+    pub target: [f64; 6],
+    /// Speed commands, rad/s.
+    pub speeds: [f64; 6],
 }
 
 impl Controller {
@@ -360,6 +373,7 @@ impl Controller {
             scaling_target: 1.0,
             trajectory: TrajectoryStatus::default(),
             stream_end: None,
+            out: CycleOutput::default(),
         }
     }
 
@@ -911,8 +925,31 @@ impl Controller {
                 (self.setpoint.qd[j] + self.p.gain * e).clamp(-self.p.speed[j], self.p.speed[j]);
             actual[j] = link;
         }
+        self.out = CycleOutput {
+            tau,
+            target,
+            speeds: out,
+        };
         self.track(&actual, now_s);
         out
+    }
+
+    /// What the last cycle computed.
+    pub fn output(&self) -> &CycleOutput {
+        &self.out
+    }
+
+    /// The activity as a small code (recordings): 0 holding, 1 moving, 2 following,
+    /// 3 streaming, 4 stopping, 5 faulted.
+    pub fn activity_code(&self) -> u8 {
+        match self.activity {
+            Activity::Holding => 0,
+            Activity::Moving { .. } => 1,
+            Activity::Following { .. } => 2,
+            Activity::Streaming { .. } => 3,
+            Activity::Stopping { .. } => 4,
+            Activity::Faulted(_) => 5,
+        }
     }
 
     /// The trajectory's bookkeeping after a cycle: desired vs the link estimate, the path

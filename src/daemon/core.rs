@@ -31,6 +31,9 @@ use super::trajectory::TrajectoryPoint;
 use crate::can::bus::{BusError, BusEvent};
 use crate::can::protocol::{Frame, Request, ServoState};
 use crate::model::Model;
+use crate::record::{
+    CycleSample, Event, Record, RecordConfig, RecordTap, RecorderStats, RecordingStatus,
+};
 
 /// What a move was planned from: the model, the link setpoint and the limits, taken under the
 /// lock, used outside it. A [`Command::Start`] is refused when the setpoint or the model has
@@ -48,7 +51,7 @@ pub struct PlanBasis {
 }
 
 /// A client's command.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub enum Command {
     /// Start a move planned from `basis`.
     Start {
@@ -96,6 +99,35 @@ pub enum Command {
     Release,
     /// The submitting client's connection closed: its lease ends (stopping what it moved).
     Disconnected,
+    /// Start recording every cycle into this tap (see `record`).
+    Record(Box<RecordTap>),
+    /// Stop recording (the writer closes the file).
+    RecordStop,
+}
+
+impl Command {
+    /// The command's name, as the API spells it (recordings log it).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Command::Start { .. } => "move",
+            Command::Stop => "stop",
+            Command::Estop => "estop",
+            Command::Reset => "reset",
+            Command::SetPayload { .. } => "set_payload",
+            Command::SetTool(_) => "set_tool",
+            Command::LoadModel(_) => "load_model",
+            Command::Shutdown => "shutdown",
+            Command::FollowTrajectory { .. } => "follow_trajectory",
+            Command::SetSpeedScaling(_) => "set_speed_scaling",
+            Command::Stream(Stream::Servo(_)) => "servo",
+            Command::Stream(_) => "jog",
+            Command::Acquire => "acquire",
+            Command::Release => "release",
+            Command::Disconnected => "disconnected",
+            Command::Record(_) => "record_start",
+            Command::RecordStop => "record_stop",
+        }
+    }
 }
 
 /// Who submits a command: a connection's id, or [`LOCAL`] for in-process callers.
@@ -139,6 +171,8 @@ pub struct Status {
     pub stream_end: Option<&'static str>,
     /// Whether a client holds the motion lease.
     pub leased: bool,
+    /// The recording in progress, or the last one.
+    pub recording: Option<RecordingStatus>,
 }
 
 /// How far the shutdown has come.
@@ -176,6 +210,16 @@ pub struct Core {
     model_dir: std::path::PathBuf,
     /// The client holding the motion lease.
     lease: Option<ClientId>,
+    /// The recording in progress.
+    tap: Option<RecordTap>,
+    /// The last recording's counters (kept after it stopped, for `status`).
+    recorded: Option<Arc<RecorderStats>>,
+    /// The activity of the last cycle (recordings log changes).
+    last_code: u8,
+    /// Where and how recordings are written.
+    record_cfg: RecordConfig,
+    /// How late the last SYNC went out, µs.
+    last_late_us: f64,
 }
 
 impl Core {
@@ -207,6 +251,11 @@ impl Core {
             syncs: 0,
             model_dir: std::path::PathBuf::from("/etc/pa10d"),
             lease: None,
+            tap: None,
+            recorded: None,
+            last_code: 0,
+            record_cfg: RecordConfig::default(),
+            last_late_us: 0.0,
         }
     }
 
@@ -231,12 +280,44 @@ impl Core {
         let link = LinkConfig::new(params.period_s, wd);
         let mut core = Self::new(loaded.model.clone(), params, link, loaded.bus_load);
         core.model_dir = loaded.model_dir.clone();
+        core.record_cfg = loaded.record.clone();
         core
     }
 
     /// The only directory `load_model` reads from.
     pub fn model_dir(&self) -> &std::path::Path {
         &self.model_dir
+    }
+
+    /// Where and how recordings are written.
+    pub fn record_config(&self) -> &RecordConfig {
+        &self.record_cfg
+    }
+
+    /// Whether a recording is in progress.
+    pub fn is_recording(&self) -> bool {
+        self.tap.is_some()
+    }
+
+    /// Records an event at the core's time (between cycles).
+    fn log_event(&mut self, kind: &'static str, text: impl Into<std::borrow::Cow<'static, str>>) {
+        self.log_event_at(self.now_s, kind, text);
+    }
+
+    /// Records an event stamped `stamp_s` (a cycle's: the file's log times never go back).
+    fn log_event_at(
+        &mut self,
+        stamp_s: f64,
+        kind: &'static str,
+        text: impl Into<std::borrow::Cow<'static, str>>,
+    ) {
+        if let Some(tap) = self.tap.as_mut() {
+            tap.push(Record::Event(Event {
+                stamp_s,
+                kind: kind.into(),
+                text: text.into(),
+            }));
+        }
     }
 
     /// Starts the session at `now` (s).
@@ -280,6 +361,7 @@ impl Core {
                     if let Some(timing) = self.link.take_timing() {
                         self.syncs += 1;
                         self.jitter.record(timing.late_s * 1e6);
+                        self.last_late_us = timing.late_s * 1e6;
                         self.stats.overruns += timing.overrun as u64;
                     }
                     self.on(ev, now);
@@ -404,6 +486,16 @@ impl Core {
     /// While another client holds the motion lease only `Stop`, `Estop`, `Shutdown` and
     /// the lease commands are accepted.
     pub fn submit_from(&mut self, client: ClientId, cmd: Command) -> Result<(), CommandError> {
+        let name = cmd.name();
+        let r = self.apply(client, cmd);
+        if r.is_ok() && !matches!(name, "servo" | "jog") {
+            // (streams at up to the cycle rate would flood the event channel)
+            self.log_event("command", name);
+        }
+        r
+    }
+
+    fn apply(&mut self, client: ClientId, cmd: Command) -> Result<(), CommandError> {
         let now = self.now_s;
         let always = matches!(
             cmd,
@@ -525,6 +617,22 @@ impl Core {
                 }
                 Ok(())
             }
+            Command::Record(tap) => {
+                if self.tap.is_some() {
+                    return Err(CommandError::Invalid(
+                        "a recording is running; record_stop first".into(),
+                    ));
+                }
+                self.recorded = Some(tap.stats.clone());
+                self.tap = Some(*tap);
+                self.log_event("recording", "started");
+                Ok(())
+            }
+            Command::RecordStop => {
+                self.log_event("recording", "stopped by a client");
+                self.tap = None;
+                Ok(())
+            }
             Command::Shutdown => {
                 match self.ctl.as_mut() {
                     Some(c) if self.link.is_running() => {
@@ -607,6 +715,9 @@ impl Core {
         let speeds = c.step(stamp_s, feedback.as_ref());
         let faulted = matches!(c.activity(), Activity::Faulted(_));
         let still = matches!(c.activity(), Activity::Holding | Activity::Faulted(_));
+        if self.tap.is_some() {
+            self.record_cycle(stamp_s, feedback.is_some());
+        }
         if self.exit == Exit::Stopping && still {
             self.exit = Exit::Halting;
             if self.stop_sent {
@@ -627,6 +738,71 @@ impl Core {
             }
         } else {
             self.link.send_commands(&speeds);
+        }
+    }
+
+    /// Hands this cycle to the recording (no allocation but an event's text on a fault);
+    /// ends the recording when its duration is reached.
+    fn record_cycle(&mut self, stamp_s: f64, complete: bool) {
+        let (Some(c), Some(_)) = (self.ctl.as_ref(), self.tap.as_ref()) else {
+            return;
+        };
+        let o = *c.output();
+        let code = c.activity_code();
+        let sp = c.setpoint().q;
+        let counters = self.link.counters();
+        let js = self.last.unwrap_or(JointState {
+            q_motor: [0.0; 6],
+            current: [0.0; 6],
+            stamp_s,
+            controller_fault: false,
+        });
+        let sample = CycleSample {
+            stamp_s,
+            cycle: self.stats.cycles,
+            activity: code,
+            feedback: complete,
+            q_motor: js.q_motor,
+            current: js.current,
+            tau: o.tau,
+            delta: std::array::from_fn(|j| o.target[j] - sp[j]),
+            setpoint: sp,
+            target: o.target,
+            speeds: o.speeds,
+            late_us: self.last_late_us,
+            link: [
+                counters.incomplete,
+                counters.paused,
+                counters.stale,
+                counters.malformed,
+            ],
+        };
+        let Some(tap) = self.tap.as_mut() else {
+            return;
+        };
+        tap.push(Record::Cycle(sample));
+        let done = tap.until_s.is_some_and(|end| stamp_s >= end);
+        // events after the cycle, at its stamp
+        if code != self.last_code {
+            self.last_code = code;
+            const NAMES: [&str; 6] = [
+                "holding",
+                "moving",
+                "following",
+                "streaming",
+                "stopping",
+                "fault",
+            ];
+            self.log_event_at(stamp_s, "state", NAMES[code as usize]);
+            if code == 5
+                && let Some(f) = self.fault()
+            {
+                self.log_event_at(stamp_s, "fault", f.to_string());
+            }
+        }
+        if done {
+            self.log_event_at(stamp_s, "recording", "duration reached");
+            self.tap = None;
         }
     }
 
@@ -699,6 +875,7 @@ impl Core {
             speed_scaling: self.ctl.as_ref().map_or(1.0, |c| c.speed_scaling().0),
             stream_end: self.ctl.as_ref().and_then(|c| c.stream_end()),
             leased: self.lease.is_some(),
+            recording: self.recorded.as_ref().map(|r| r.status(self.tap.is_some())),
         }
     }
 }

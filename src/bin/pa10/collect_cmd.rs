@@ -68,6 +68,9 @@ pub enum CollectCmd {
     /// Drive the daemon through a pose list (`config_id,load_n,q1..q6`, link-side rad) and
     /// record resolver angles and currents per pose (`config_id,load_n,q1..q6,i1..i6`).
     Run(RunArgs),
+    /// Cut robot samples from a recording (`pa10 record`): the resolver and current means of
+    /// every still phase whose setpoint is a pose of the list.
+    FromRecording(FromRecordingArgs),
     /// Merge recorded robot samples with the instrument's measurements
     /// (`config_id,load_n,x,y,z,qw,qx,qy,qz`, instrument frame) by pose id into a dataset.
     Merge(MergeArgs),
@@ -110,6 +113,69 @@ pub struct MergeArgs {
     out: PathBuf,
 }
 
+/// Arguments of `pa10 collect from-recording`.
+#[derive(Debug, Args)]
+pub struct FromRecordingArgs {
+    /// The recording's files (a rotated recording: all of them, in order).
+    #[arg(required = true)]
+    recording: Vec<PathBuf>,
+    /// The pose list the campaign drove (`config_id,load_n,q1..q6`).
+    #[arg(long, value_name = "FILE")]
+    poses: PathBuf,
+    /// Where to write the robot samples.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Shortest still phase used, s.
+    #[arg(long, default_value_t = 0.5)]
+    min_still: f64,
+    /// Skipped at the start of each still phase (settling), s.
+    #[arg(long, default_value_t = 0.3)]
+    settle: f64,
+}
+
+fn from_recording(a: &FromRecordingArgs) -> Result<()> {
+    let poses = collect::parse_poses(&read(&a.poses)?, &a.poses.display().to_string())?;
+    let mut cycles = Vec::new();
+    for f in &a.recording {
+        cycles.extend(
+            pa10::record::read::cycles(f).with_context(|| format!("reading {}", f.display()))?,
+        );
+    }
+    let phases = pa10::record::read::still_phases(&cycles, a.min_still, a.settle, 0.01);
+    let mut rows = Vec::new();
+    let mut unmatched = 0;
+    for p in &phases {
+        match poses
+            .iter()
+            .find(|t| (0..6).all(|j| (t.q[j] - p.setpoint[j]).abs() < 1e-6))
+        {
+            Some(t) => rows.push(collect::RobotSample {
+                config_id: t.config_id.clone(),
+                load_n: t.load_n,
+                q: p.q_motor,
+                current: p.current,
+            }),
+            None => unmatched += 1,
+        }
+    }
+    if rows.is_empty() {
+        bail!(
+            "no still phase of the recording is at a pose of {} ({} still phases found)",
+            a.poses.display(),
+            phases.len()
+        );
+    }
+    std::fs::write(&a.out, collect::robot_csv(&rows))
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    println!(
+        "wrote {} ({} samples from {} still phases; {unmatched} not at a listed pose)",
+        a.out.display(),
+        rows.len(),
+        phases.len()
+    );
+    Ok(())
+}
+
 fn read(p: &PathBuf) -> Result<String> {
     std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))
 }
@@ -118,6 +184,7 @@ fn read(p: &PathBuf) -> Result<String> {
 pub fn run(c: &CollectCmd) -> Result<()> {
     match c {
         CollectCmd::Run(a) => collect_run(a),
+        CollectCmd::FromRecording(a) => from_recording(a),
         CollectCmd::Merge(a) => {
             let robot = collect::parse_robot(&read(&a.robot)?, &a.robot.display().to_string())?;
             let inst = collect::parse_instrument(

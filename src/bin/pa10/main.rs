@@ -11,6 +11,7 @@ mod demo_cmd;
 mod discover_cmd;
 mod model_cmds;
 mod motion_cmd;
+mod record_cmd;
 mod sim_cmd;
 
 use std::process::ExitCode;
@@ -103,6 +104,9 @@ enum Command {
         /// Fraction of full speed.
         fraction: f64,
     },
+    /// Recording every control cycle (MCAP): start/stop through the daemon, info, export.
+    #[command(subcommand)]
+    Record(record_cmd::RecordCmd),
     /// Daemon: stream its state.
     Watch {
         #[command(flatten)]
@@ -163,6 +167,7 @@ fn main() -> ExitCode {
         }
         Command::Watch { conn, rate_hz } => client_cmd::watch(&conn, rate_hz),
         Command::Trajectory(a) => motion_cmd::trajectory(&a),
+        Command::Record(c) => record_cmd::run(&c),
         Command::Servo(c) => motion_cmd::servo(&c),
         Command::Jog(a) => motion_cmd::jog(&a),
         Command::Speed { conn, fraction } => client_cmd::simple(

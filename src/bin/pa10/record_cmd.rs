@@ -1,0 +1,106 @@
+//! `pa10 record start|stop|info|export`: recording every control cycle to MCAP through the
+//! daemon, and reading recordings back (docs/recording.md).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Subcommand;
+use serde_json::json;
+
+use crate::client_cmd::{Conn, checked};
+use pa10::record::read;
+
+/// `pa10 record …`
+#[derive(Debug, Subcommand)]
+pub enum RecordCmd {
+    /// Start recording every cycle (a file inside the daemon's `record.dir`).
+    Start {
+        #[command(flatten)]
+        conn: Conn,
+        /// A plain file name (default `pa10d-<unix time>.mcap`).
+        #[arg(long, value_name = "NAME")]
+        out: Option<String>,
+        /// Stop after this long, s.
+        #[arg(long, value_name = "S")]
+        duration: Option<f64>,
+    },
+    /// Stop recording.
+    Stop(Conn),
+    /// Channels, message counts, duration and the recorder's drops of a recording file.
+    Info {
+        /// The MCAP file.
+        file: PathBuf,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write `cycles.csv` and `events.csv` of a recording into a folder.
+    Export {
+        /// The MCAP file.
+        file: PathBuf,
+        /// The folder.
+        #[arg(long, value_name = "DIR")]
+        csv: PathBuf,
+    },
+}
+
+/// `pa10 record …`.
+pub fn run(c: &RecordCmd) -> Result<()> {
+    match c {
+        RecordCmd::Start {
+            conn,
+            out,
+            duration,
+        } => {
+            let mut req = json!({"cmd": "record_start"});
+            if let Some(o) = out {
+                req["file"] = o.clone().into();
+            }
+            if let Some(d) = duration {
+                req["duration_s"] = (*d).into();
+            }
+            let v = checked(&mut crate::client_cmd::Socket(conn.clone()), req)?;
+            println!("recording to {}", v["path"].as_str().unwrap_or("?"));
+            Ok(())
+        }
+        RecordCmd::Stop(conn) => {
+            checked(
+                &mut crate::client_cmd::Socket(conn.clone()),
+                json!({"cmd": "record_stop"}),
+            )?;
+            println!("stopped");
+            Ok(())
+        }
+        RecordCmd::Info { file, json } => {
+            let i = read::info(file).with_context(|| format!("reading {}", file.display()))?;
+            if *json {
+                println!("{}", serde_json::to_string(&i)?);
+                return Ok(());
+            }
+            println!("{}", file.display());
+            println!(
+                "  span {:.3} … {:.3} s ({:.3} s)",
+                i.span_s[0],
+                i.span_s[1],
+                i.span_s[1] - i.span_s[0]
+            );
+            for (topic, n) in &i.channels {
+                println!("  {topic}: {n} messages");
+            }
+            println!("  cycles with incomplete feedback: {}", i.incomplete);
+            if i.recorder.is_empty() {
+                println!("  recorder counts: not in this file (a rotated file before the last)");
+            } else {
+                for (k, v) in &i.recorder {
+                    println!("  recorder {k}: {v}");
+                }
+            }
+            Ok(())
+        }
+        RecordCmd::Export { file, csv } => {
+            let [c, e] = read::export_csv(file, csv)?;
+            println!("wrote {} and {}", c.display(), e.display());
+            Ok(())
+        }
+    }
+}
