@@ -460,7 +460,13 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     let text = std::fs::read_to_string(&cfg)
         .unwrap()
         .replace("following_error: 0.01", "following_error: 0.05")
-        .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100");
+        .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100")
+        // every cycle recorded from the start (record.autostart), into the test's folder
+        .replace(
+            "  dir: /tmp/pa10d-recordings\n  autostart: false",
+            &format!("  dir: {}\n  autostart: true", dir.display()),
+        );
+    assert!(text.contains("autostart: true"));
     std::fs::write(&cfg, text).unwrap();
     let mut child = Reaped(
         std::process::Command::new(env!("CARGO_BIN_EXE_pa10d"))
@@ -683,6 +689,61 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     let status = child.0.wait().unwrap();
     assert!(status.success(), "{status:?}");
     assert!(!sock.exists(), "socket removed on exit");
+    // the recording the daemon made of all this, closed on exit, read back through the CLI
+    let first = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| {
+            p.file_name().is_some_and(|n| {
+                n.to_string_lossy().starts_with("pa10d-") && !n.to_string_lossy().contains("-0")
+            })
+        })
+        .expect("an autostarted recording");
+    let files = pa10::record::files_of(&first);
+    let o = pa10(&[
+        "record",
+        "info",
+        "--json",
+        files.last().unwrap().to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let info: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(info["recorder"]["dropped_queue"], "0", "{info}");
+    let o = pa10(&[
+        "record",
+        "export",
+        files[0].to_str().unwrap(),
+        "--csv",
+        dir.join("csv").to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let events = std::fs::read_to_string(dir.join("csv/events.csv")).unwrap();
+    assert!(events.contains("command,\"move\""), "{events}");
+    // the campaign cut again from the recording: a sample per still phase at a listed pose
+    let robot2 = dir.join("robot2.csv");
+    let mut args = vec!["collect", "from-recording"];
+    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    args.extend(names.iter().map(String::as_str));
+    args.extend([
+        "--poses",
+        poses.to_str().unwrap(),
+        "--out",
+        robot2.to_str().unwrap(),
+        "--min-still",
+        "0.1",
+        "--settle",
+        "0.05",
+    ]);
+    let o = pa10(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cut = pa10::calib::collect::parse_robot(&std::fs::read_to_string(&robot2).unwrap(), "r2")
+        .unwrap();
+    assert!(
+        cut.iter().any(|r| r.config_id == "a") && cut.iter().any(|r| r.config_id == "b"),
+        "{cut:?}"
+    );
+    let b = cut.iter().find(|r| r.config_id == "b").unwrap();
+    assert!((b.q[0] - 0.2).abs() < 1e-3, "{b:?}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -142,6 +142,13 @@ fn run(path: &Path) -> Result<()> {
             pa10::daemon::api::serve(&socket, mode, max_clients, api_shared, api_health, stop_rx)
                 .await
         });
+        if loaded.record.autostart {
+            let r = pa10::daemon::api::handle(&shared, r#"{"cmd":"record_start"}"#);
+            match r["path"].as_str() {
+                Some(p) => tracing::info!(path = p, "recording every cycle (record.autostart)"),
+                None => tracing::error!(error = %r["error"], "record.autostart: recording did not start"),
+            }
+        }
         let _ = sd_notify::notify(&[
             NotifyState::Ready,
             NotifyState::Status("control loop running"),
@@ -195,6 +202,17 @@ fn run(path: &Path) -> Result<()> {
         anyhow::Ok(())
     });
     daemon.shutdown();
+    // a recording in progress is closed whole (its summary written) before the process ends
+    let rec = lock(&daemon.core).stop_recording();
+    if let Some(stats) = rec {
+        let end = std::time::Instant::now() + Duration::from_secs(10);
+        while !stats.finished.load(std::sync::atomic::Ordering::SeqCst)
+            && std::time::Instant::now() < end
+        {
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        tracing::info!(status = ?stats.status(false), "recording closed");
+    }
     tracing::info!("stopped");
     result
 }

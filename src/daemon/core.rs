@@ -294,6 +294,15 @@ impl Core {
         &self.record_cfg
     }
 
+    /// Ends the recording in progress (the writer then closes its file); its counters, to
+    /// wait on `finished`.
+    pub fn stop_recording(&mut self) -> Option<Arc<RecorderStats>> {
+        self.tap.as_ref()?;
+        self.log_event("recording", "stopped: the daemon is shutting down");
+        self.tap = None;
+        self.recorded.clone()
+    }
+
     /// Whether a recording is in progress.
     pub fn is_recording(&self) -> bool {
         self.tap.is_some()
