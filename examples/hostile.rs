@@ -89,20 +89,7 @@ fn run(secs: f64, fifo: bool, hostile: bool, dir: &Path) -> Run {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let check = args.iter().any(|a| a == "--check");
-    let secs: f64 = args.iter().find_map(|s| s.parse().ok()).unwrap_or(5.0);
-    let fifo = std::thread::spawn(|| pa10::daemon::realtime::set_fifo(80).is_ok())
-        .join()
-        .expect("probe thread");
-    let dir = std::env::temp_dir().join(format!("pa10-hostile-example-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    println!(
-        "control thread: {}",
-        if fifo {
-            "SCHED_FIFO 80"
-        } else {
-            "normal priority (SCHED_FIFO not permitted)"
-        }
-    );
+    let (secs, fifo, dir) = common::setup("hostile-example", 5.0);
     println!(
         "| run | s | refused | good moves | cycles | overruns | incomplete / paused | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | RSS + [KiB] | ended |"
     );

@@ -14,23 +14,7 @@ use serde_json::json;
 mod common;
 
 fn main() {
-    let secs: f64 = std::env::args()
-        .nth(1)
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(5.0);
-    let fifo = std::thread::spawn(|| pa10::daemon::realtime::set_fifo(80).is_ok())
-        .join()
-        .expect("probe thread");
-    let dir = std::env::temp_dir().join(format!("pa10-servo-stream-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    println!(
-        "control thread: {}",
-        if fifo {
-            "SCHED_FIFO 80"
-        } else {
-            "normal priority"
-        }
-    );
+    let (secs, fifo, dir) = common::setup("servo-stream", 5.0);
     println!(
         "| run | s | setpoints sent / refused | max lag after 1 s [mrad] | cycles | overruns | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | ended |"
     );

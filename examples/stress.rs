@@ -11,12 +11,11 @@
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
 
 use pa10::daemon::api::handle;
 use pa10::daemon::runtime::Daemon;
 use pa10::sim::rig::SimulatedArm;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 mod common;
 
@@ -65,17 +64,7 @@ fn main() {
                 })
             })
             .collect();
-        let a = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
-        let b = [0.3, 0.6, 1.3, 0.4, 0.8, 0.5];
-        let end = Instant::now() + Duration::from_secs_f64(secs);
-        let mut k = 0;
-        while Instant::now() < end {
-            let q = if k % 2 == 0 { b } else { a };
-            let r = handle(&d.core, &json!({"cmd": "move_joints", "q": q}).to_string());
-            let dur = r["duration_s"].as_f64().unwrap_or(0.5);
-            std::thread::sleep(Duration::from_secs_f64(dur + 0.1));
-            k += 1;
-        }
+        common::back_and_forth(&d.core, secs);
         stop.store(true, Ordering::Relaxed);
         for t in busy {
             let _ = t.join();

@@ -99,3 +99,47 @@ impl Served {
         drop(self.arm);
     }
 }
+
+/// The examples' shared start: SECONDS from the first numeric argument (or `default_s`),
+/// whether SCHED_FIFO is permitted here (probed on a throw-away thread, printed), and a
+/// fresh temporary folder for `tag`.
+#[allow(dead_code)]
+pub fn setup(tag: &str, default_s: f64) -> (f64, bool, std::path::PathBuf) {
+    let secs = std::env::args()
+        .skip(1)
+        .find_map(|s| s.parse().ok())
+        .unwrap_or(default_s);
+    let fifo = std::thread::spawn(|| pa10::daemon::realtime::set_fifo(80).is_ok())
+        .join()
+        .expect("probe thread");
+    let dir = std::env::temp_dir().join(format!("pa10-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    println!(
+        "control thread: {}",
+        if fifo {
+            "SCHED_FIFO 80"
+        } else {
+            "normal priority (SCHED_FIFO not permitted)"
+        }
+    );
+    (secs, fifo, dir)
+}
+
+/// Moves the arm of `core` back and forth between two joint targets for `secs` (real
+/// time), each move awaited; the moves made.
+#[allow(dead_code)]
+pub fn back_and_forth(core: &std::sync::Mutex<pa10::daemon::core::Core>, secs: f64) -> usize {
+    let a = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
+    let b = [0.3, 0.6, 1.3, 0.4, 0.8, 0.5];
+    let end = std::time::Instant::now() + std::time::Duration::from_secs_f64(secs);
+    let mut k = 0;
+    while std::time::Instant::now() < end {
+        let q = if k % 2 == 0 { b } else { a };
+        let line = serde_json::json!({"cmd": "move_joints", "q": q}).to_string();
+        let r = pa10::daemon::api::handle(core, &line);
+        let dur = r["duration_s"].as_f64().unwrap_or(0.5);
+        std::thread::sleep(std::time::Duration::from_secs_f64(dur + 0.1));
+        k += 1;
+    }
+    k
+}

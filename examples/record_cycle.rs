@@ -1,0 +1,63 @@
+//! The loop's cost and timing with recording on vs off: the real-time daemon on the
+//! simulated arm (control thread SCHED_FIFO where permitted) moving back and forth, once
+//! without and once while recording every cycle to MCAP (zstd) in a temporary folder.
+//!
+//! `cargo run --release --example record_cycle [SECONDS]` — prints cycles, overruns, wake-up
+//! jitter and compute time (p50 / p99 / max, µs), and what the recorder wrote and dropped.
+//! BENCHMARKS.md quotes it.
+
+use std::time::Duration;
+
+use pa10::daemon::api::handle;
+
+mod common;
+
+fn main() {
+    let (secs, fifo, dir) = common::setup("record-cycle", 10.0);
+    println!(
+        "| recording | cycles | overruns | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | written / dropped | file [kB] |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for record in [false, true] {
+        let mut cfg = common::sim_config(500.0, if record { "rec" } else { "norec" });
+        cfg.record.dir = dir.clone();
+        let path = dir.join(if record { "rec.sock" } else { "norec.sock" });
+        let served = common::Served::start(&mut cfg, fifo, &path);
+        let core = served.daemon.core.clone();
+        if record {
+            let r = handle(&core, r#"{"cmd":"record_start","file":"bench"}"#);
+            assert_eq!(r["ok"], true, "{r}");
+        }
+        common::back_and_forth(&core, secs);
+        let st = served.status();
+        let _ = handle(&core, r#"{"cmd":"record_stop"}"#);
+        std::thread::sleep(Duration::from_millis(500));
+        let rec = handle(&core, r#"{"cmd":"status"}"#)["status"]["recording"].clone();
+        served.stop();
+        let c = &st["cycle"];
+        println!(
+            "| {} | {} | {} | {} | {} | {} | {} |",
+            if record { "on (zstd)" } else { "off" },
+            c["cycles"],
+            c["overruns"],
+            common::triple(&c["jitter_us"]),
+            common::triple(&c["compute_us"]),
+            if record {
+                format!(
+                    "{} / {}",
+                    rec["written"],
+                    rec["dropped_queue"].as_u64().unwrap_or(0)
+                        + rec["dropped_write"].as_u64().unwrap_or(0)
+                )
+            } else {
+                "—".into()
+            },
+            if record {
+                format!("{:.0}", rec["bytes"].as_f64().unwrap_or(0.0) / 1e3)
+            } else {
+                "—".into()
+            },
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
