@@ -138,10 +138,28 @@ fn run(path: &Path) -> Result<()> {
         let health = std::sync::Arc::new(pa10::daemon::api::ApiHealth::default());
         let api_health = health.clone();
         let max_clients = loaded.config.api.max_clients;
+        let live_stop = stop_rx.clone();
         let mut api = tokio::spawn(async move {
             pa10::daemon::api::serve(&socket, mode, max_clients, api_shared, api_health, stop_rx)
                 .await
         });
+        let live = &loaded.config.live;
+        if live.enabled {
+            // the live view: loopback only, off by default (docs/recording.md)
+            let addr = std::net::SocketAddr::from(([127, 0, 0, 1], live.port));
+            match tokio::net::TcpListener::bind(addr).await {
+                Ok(l) => {
+                    tracing::info!(%addr, "live view (Foxglove WebSocket) listening");
+                    tokio::spawn(pa10::daemon::live::serve(
+                        l,
+                        shared.clone(),
+                        live.rate_hz,
+                        live_stop,
+                    ));
+                }
+                Err(e) => tracing::error!(%addr, error = %e, "live view: cannot listen; running without it"),
+            }
+        }
         if loaded.record.autostart {
             let r = pa10::daemon::api::handle(&shared, r#"{"cmd":"record_start"}"#);
             match r["path"].as_str() {

@@ -217,6 +217,9 @@ pub struct Config {
     /// Recording every cycle (MCAP).
     #[serde(default)]
     pub record: crate::record::RecordConfig,
+    /// The live view (Foxglove WebSocket, loopback only; off by default).
+    #[serde(default)]
+    pub live: super::live::LiveConfig,
     /// Log filter (tracing syntax, e.g. `info`, `pa10=debug`).
     #[serde(default = "default_log")]
     pub log_level: String,

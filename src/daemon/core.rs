@@ -220,6 +220,8 @@ pub struct Core {
     record_cfg: RecordConfig,
     /// How late the last SYNC went out, µs.
     last_late_us: f64,
+    /// The last cycle, as recorded.
+    last_sample: Option<CycleSample>,
 }
 
 impl Core {
@@ -256,6 +258,7 @@ impl Core {
             last_code: 0,
             record_cfg: RecordConfig::default(),
             last_late_us: 0.0,
+            last_sample: None,
         }
     }
 
@@ -301,6 +304,11 @@ impl Core {
         self.log_event("recording", "stopped: the daemon is shutting down");
         self.tap = None;
         self.recorded.clone()
+    }
+
+    /// The last cycle, as a recording has it (the live view).
+    pub fn last_sample(&self) -> Option<CycleSample> {
+        self.last_sample
     }
 
     /// Whether a recording is in progress.
@@ -724,9 +732,7 @@ impl Core {
         let speeds = c.step(stamp_s, feedback.as_ref());
         let faulted = matches!(c.activity(), Activity::Faulted(_));
         let still = matches!(c.activity(), Activity::Holding | Activity::Faulted(_));
-        if self.tap.is_some() {
-            self.record_cycle(stamp_s, feedback.is_some());
-        }
+        self.record_cycle(stamp_s, feedback.is_some());
         if self.exit == Exit::Stopping && still {
             self.exit = Exit::Halting;
             if self.stop_sent {
@@ -750,10 +756,11 @@ impl Core {
         }
     }
 
-    /// Hands this cycle to the recording (no allocation but an event's text on a fault);
-    /// ends the recording when its duration is reached.
+    /// Keeps this cycle as the last sample (the live view) and hands it to the recording
+    /// (no allocation but an event's text on a fault); ends the recording when its duration
+    /// is reached.
     fn record_cycle(&mut self, stamp_s: f64, complete: bool) {
-        let (Some(c), Some(_)) = (self.ctl.as_ref(), self.tap.as_ref()) else {
+        let Some(c) = self.ctl.as_ref() else {
             return;
         };
         let o = *c.output();
@@ -786,6 +793,7 @@ impl Core {
                 counters.malformed,
             ],
         };
+        self.last_sample = Some(sample);
         let Some(tap) = self.tap.as_mut() else {
             return;
         };

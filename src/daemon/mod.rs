@@ -11,6 +11,7 @@ pub mod config;
 pub mod control;
 pub mod core;
 pub mod link;
+pub mod live;
 pub mod motion;
 pub mod realtime;
 pub mod runtime;
