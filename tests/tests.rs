@@ -18,3 +18,4 @@ mod properties;
 mod record;
 mod servo;
 mod trajectory;
+mod urdf;

@@ -22,6 +22,7 @@ mod kinematics;
 pub mod params;
 pub(crate) mod robot;
 mod statics;
+pub mod urdf;
 
 pub use compliance::Stiffness;
 pub use file::{EffectRecord, ModelFile, PoseData};

@@ -118,6 +118,8 @@ enum Command {
     /// Model files.
     #[command(subcommand)]
     Model(model_cmds::ModelCmd),
+    /// The model's kinematics as a URDF (RViz, MoveIt): the calibrated geometry, limits, the tool.
+    Urdf(model_cmds::UrdfArgs),
 }
 
 fn main() -> ExitCode {
@@ -126,6 +128,7 @@ fn main() -> ExitCode {
         Command::Fk(a) => model_cmds::fk(&a),
         Command::Ik(a) => model_cmds::ik(&a),
         Command::Model(c) => model_cmds::model(&c),
+        Command::Urdf(a) => model_cmds::urdf(&a),
         Command::Accuracy(a) => accuracy_cmd::accuracy(&a),
         Command::Calibrate(a) => calib_cmd::calibrate(&a),
         Command::Discover(a) => discover_cmd::run(&a),

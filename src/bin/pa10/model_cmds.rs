@@ -209,3 +209,30 @@ pub fn model(c: &ModelCmd) -> Result<()> {
         }
     }
 }
+
+/// Arguments of `pa10 urdf`.
+#[derive(Debug, Args)]
+pub struct UrdfArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// Write here instead of stdout.
+    #[arg(long, value_name = "FILE")]
+    out: Option<PathBuf>,
+    /// The robot's name in the URDF.
+    #[arg(long, default_value = "pa10")]
+    name: String,
+}
+
+/// `pa10 urdf`: the model's kinematics as a URDF.
+pub fn urdf(a: &UrdfArgs) -> Result<()> {
+    let m = a.model.load()?;
+    let text = pa10::model::urdf::urdf(&m, &a.name);
+    match &a.out {
+        Some(p) => {
+            std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+            println!("wrote {}", p.display());
+        }
+        None => print!("{text}"),
+    }
+    Ok(())
+}

@@ -1,0 +1,127 @@
+//! `pa10 urdf`: forward kinematics computed from the URDF's XML alone (parsed by roxmltree,
+//! composed here) equals `pa10 fk --model FILE` at random configurations, for the nominal
+//! model and a calibrated one (departures and Hayati β on every parameter).
+
+use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use rand::{RngExt, SeedableRng};
+use serde_json::Value;
+
+/// The chain of the URDF: per revolute joint its origin, then the tool's fixed origin.
+fn chain(xml: &str) -> (Vec<Isometry3<f64>>, Isometry3<f64>, Vec<(f64, f64)>) {
+    let doc = roxmltree::Document::parse(xml).unwrap();
+    let nums = |s: &str| -> Vec<f64> { s.split_whitespace().map(|x| x.parse().unwrap()).collect() };
+    let origin = |j: roxmltree::Node| -> Isometry3<f64> {
+        let o = j.children().find(|c| c.has_tag_name("origin")).unwrap();
+        let t = nums(o.attribute("xyz").unwrap());
+        let r = nums(o.attribute("rpy").unwrap());
+        // URDF: fixed-axis roll, pitch, yaw
+        let rot = Rotation3::from_euler_angles(r[0], r[1], r[2]);
+        Isometry3::from_parts(
+            Translation3::new(t[0], t[1], t[2]),
+            UnitQuaternion::from_rotation_matrix(&rot),
+        )
+    };
+    let joints: Vec<roxmltree::Node> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("joint"))
+        .collect();
+    let mut revolute = Vec::new();
+    let mut limits = Vec::new();
+    let mut tool = None;
+    for j in joints {
+        match j.attribute("type") {
+            Some("revolute") => {
+                let axis = j.children().find(|c| c.has_tag_name("axis")).unwrap();
+                assert_eq!(nums(axis.attribute("xyz").unwrap()), [0.0, 0.0, 1.0]);
+                let l = j.children().find(|c| c.has_tag_name("limit")).unwrap();
+                limits.push((
+                    l.attribute("lower").unwrap().parse().unwrap(),
+                    l.attribute("upper").unwrap().parse().unwrap(),
+                ));
+                revolute.push(origin(j));
+            }
+            Some("fixed") => tool = Some(origin(j)),
+            t => panic!("joint type {t:?}"),
+        }
+    }
+    (revolute, tool.unwrap(), limits)
+}
+
+fn urdf_fk(
+    chain: &(Vec<Isometry3<f64>>, Isometry3<f64>, Vec<(f64, f64)>),
+    q: &[f64; 6],
+) -> Isometry3<f64> {
+    let mut f = Isometry3::identity();
+    for (o, qj) in chain.0.iter().zip(q) {
+        f = f * o * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *qj);
+    }
+    f * chain.1
+}
+
+fn check(model_file: &std::path::Path, tag: &str) {
+    let dir = std::env::temp_dir().join(format!("pa10-urdf-{tag}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("pa10.urdf");
+    let pa10 = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let o = pa10(&[
+        "urdf",
+        "--model",
+        model_file.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let c = chain(&std::fs::read_to_string(&out).unwrap());
+    assert_eq!(c.0.len(), 6);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let mut worst: (f64, f64) = (0.0, 0.0);
+    for _ in 0..20 {
+        let q: [f64; 6] = std::array::from_fn(|j| rng.random_range(c.2[j].0..c.2[j].1));
+        let args: Vec<String> = q.iter().map(|v| format!("{v:e}")).collect();
+        let mut a = vec![
+            "fk",
+            "--json",
+            "--model",
+            model_file.to_str().unwrap(),
+            "--",
+        ];
+        a.extend(args.iter().map(String::as_str));
+        let o = pa10(&a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+        let p: Vec<f64> = serde_json::from_value(v["position"].clone()).unwrap();
+        let w: Vec<f64> = serde_json::from_value(v["quaternion"].clone()).unwrap();
+        let f = urdf_fk(&c, &q);
+        let dp = (f.translation.vector - Vector3::new(p[0], p[1], p[2])).norm();
+        let qf = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w[0], w[1], w[2], w[3]));
+        let dr = f.rotation.angle_to(&qf);
+        worst = (worst.0.max(dp), worst.1.max(dr));
+    }
+    eprintln!(
+        "urdf {tag}: worst {:.2e} m, {:.2e} rad over 20 configurations",
+        worst.0, worst.1
+    );
+    assert!(worst.0 < 1e-9 && worst.1 < 1e-9, "{worst:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_urdf_has_the_models_forward_kinematics() {
+    let nominal = std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/config/model-nominal.yaml"
+    ));
+    check(nominal, "nominal");
+    let (_, calibrated, _) = crate::common::calibrated_and_nominal(3);
+    let dir = std::env::temp_dir().join(format!("pa10-urdf-cal-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("calibrated.yaml");
+    calibrated.save(&file).unwrap();
+    check(&file, "calibrated");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
