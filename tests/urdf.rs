@@ -6,8 +6,18 @@ use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use serde_json::Value;
 
-/// The chain of the URDF: per revolute joint its origin, then the tool's fixed origin.
-fn chain(xml: &str) -> (Vec<Isometry3<f64>>, Isometry3<f64>, Vec<(f64, f64)>) {
+/// The chain of a URDF.
+struct Chain {
+    /// Per revolute joint, its origin.
+    joints: Vec<Isometry3<f64>>,
+    /// The tool's fixed origin.
+    tool: Isometry3<f64>,
+    /// Per revolute joint, its lower and upper limit, rad.
+    limits: Vec<(f64, f64)>,
+}
+
+/// The chain of the URDF `xml`.
+fn chain(xml: &str) -> Chain {
     let doc = roxmltree::Document::parse(xml).unwrap();
     let nums = |s: &str| -> Vec<f64> { s.split_whitespace().map(|x| x.parse().unwrap()).collect() };
     let origin = |j: roxmltree::Node| -> Isometry3<f64> {
@@ -44,18 +54,19 @@ fn chain(xml: &str) -> (Vec<Isometry3<f64>>, Isometry3<f64>, Vec<(f64, f64)>) {
             t => panic!("joint type {t:?}"),
         }
     }
-    (revolute, tool.unwrap(), limits)
+    Chain {
+        joints: revolute,
+        tool: tool.unwrap(),
+        limits,
+    }
 }
 
-fn urdf_fk(
-    chain: &(Vec<Isometry3<f64>>, Isometry3<f64>, Vec<(f64, f64)>),
-    q: &[f64; 6],
-) -> Isometry3<f64> {
+fn urdf_fk(chain: &Chain, q: &[f64; 6]) -> Isometry3<f64> {
     let mut f = Isometry3::identity();
-    for (o, qj) in chain.0.iter().zip(q) {
+    for (o, qj) in chain.joints.iter().zip(q) {
         f = f * o * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), *qj);
     }
-    f * chain.1
+    f * chain.tool
 }
 
 fn check(model_file: &std::path::Path, tag: &str) {
@@ -77,11 +88,11 @@ fn check(model_file: &std::path::Path, tag: &str) {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let c = chain(&std::fs::read_to_string(&out).unwrap());
-    assert_eq!(c.0.len(), 6);
+    assert_eq!(c.joints.len(), 6);
     let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
     let mut worst: (f64, f64) = (0.0, 0.0);
     for _ in 0..20 {
-        let q: [f64; 6] = std::array::from_fn(|j| rng.random_range(c.2[j].0..c.2[j].1));
+        let q: [f64; 6] = std::array::from_fn(|j| rng.random_range(c.limits[j].0..c.limits[j].1));
         let args: Vec<String> = q.iter().map(|v| format!("{v:e}")).collect();
         let mut a = vec![
             "fk",
