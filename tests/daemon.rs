@@ -450,25 +450,17 @@ fn the_daemon_binary_keeps_accepting_after_running_out_of_file_descriptors() {
     assert!(text.contains("accepting clients again"), "{text}");
 }
 
-/// The one real-time end-to-end test: the `pa10d` binary on its socket with the simulated arm.
-#[test]
-fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
-    let _serial = serial();
-    let dir = temp_dir("bin");
-    let cfg = config(&dir, &Model::nominal());
-    // real time on a shared test machine: generous safety margins
+/// Starts the `pa10d` binary on the simulated arm with its configuration in `dir` (sim.yaml
+/// with real-time margins for a shared test machine, then `edit`); waits (≤ 10 s) for its
+/// socket.
+fn spawn_pa10d(dir: &Path, edit: impl FnOnce(String) -> String) -> (Reaped, PathBuf) {
+    let cfg = config(dir, &Model::nominal());
     let text = std::fs::read_to_string(&cfg)
         .unwrap()
         .replace("following_error: 0.01", "following_error: 0.05")
-        .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100")
-        // every cycle recorded from the start (record.autostart), into the test's folder
-        .replace(
-            "  dir: /tmp/pa10d-recordings\n  autostart: false",
-            &format!("  dir: {}\n  autostart: true", dir.display()),
-        );
-    assert!(text.contains("autostart: true"));
-    std::fs::write(&cfg, text).unwrap();
-    let mut child = Reaped(
+        .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100");
+    std::fs::write(&cfg, edit(text)).unwrap();
+    let child = Reaped(
         std::process::Command::new(env!("CARGO_BIN_EXE_pa10d"))
             .args(["--config", cfg.to_str().unwrap()])
             // not piped: an unread pipe fills up and blocks the daemon's logging
@@ -482,6 +474,54 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     while !sock.exists() && Instant::now() < end {
         std::thread::sleep(Duration::from_millis(20));
     }
+    (child, sock)
+}
+
+/// The Python client (`clients/python`, installed by CI: `PA10_PYTHON_CLIENT=1`) against the
+/// `pa10d` binary on the simulated arm: moves, a refusal's words, a trajectory, the lease, a
+/// servo stream and its deadline, jog, speed scaling, subscribe.
+#[test]
+fn the_python_client_drives_the_daemon_binary() {
+    if std::env::var("PA10_PYTHON_CLIENT").is_ok_and(|v| v == "1") {
+        let _serial = serial();
+        let dir = temp_dir("python");
+        let (_child, sock) = spawn_pa10d(&dir, |t| t);
+        let o = std::process::Command::new("python3")
+            .arg(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/clients/python/tests/against_daemon.py"
+            ))
+            .arg(&sock)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(String::from_utf8_lossy(&o.stdout).contains("all checks passed"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    } else {
+        eprintln!("skipped: set PA10_PYTHON_CLIENT=1 with clients/python installed (CI does)");
+    }
+}
+
+/// The one real-time end-to-end test: the `pa10d` binary on its socket with the simulated arm.
+#[test]
+fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
+    let _serial = serial();
+    let dir = temp_dir("bin");
+    let (mut child, sock) = spawn_pa10d(&dir, |text| {
+        // every cycle recorded from the start (record.autostart), into the test's folder
+        let t = text.replace(
+            "  dir: /tmp/pa10d-recordings\n  autostart: false",
+            &format!("  dir: {}\n  autostart: true", dir.display()),
+        );
+        assert!(t.contains("autostart: true"));
+        t
+    });
+    let cfg = dir.join("pa10d.yaml");
     use std::io::{BufRead, Write};
     let mut s = std::os::unix::net::UnixStream::connect(&sock).unwrap();
     s.write_all(b"{\"cmd\":\"status\"}\n").unwrap();
