@@ -6,7 +6,8 @@
 //!
 //! `cargo run --release --example hostile [SECONDS] [--check]` — with `--check` (CI runs it
 //! so) it exits 1 if the arm faulted, or, under SCHED_FIFO, if the hostile run's p99 wake-up
-//! jitter exceeds the quiet run's by more than max(2×, +1 ms). Every refusal is checked for
+//! jitter exceeds the quiet run's by more than max(2×, +1 ms) twice in a row (once may be
+//! the VM's own noise; both runs are measured again). Every refusal is checked for
 //! precision in both modes (a vague or leaking answer panics). BENCHMARKS.md quotes it.
 
 use std::path::Path;
@@ -86,22 +87,21 @@ fn run(secs: f64, fifo: bool, hostile: bool, dir: &Path) -> Run {
     }
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let check = args.iter().any(|a| a == "--check");
-    let (secs, fifo, dir) = common::setup("hostile-example", 5.0);
+/// One quiet and one hostile run: the faults, and the jitter rise when p99 under hostile
+/// clients exceeds max(2×, +1 ms) of the quiet run's under SCHED_FIFO.
+fn attempt(secs: f64, fifo: bool, dir: &std::path::Path) -> (Vec<String>, Option<String>) {
     println!(
         "| run | s | refused | good moves | cycles | overruns | incomplete / paused | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | RSS + [KiB] | ended |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     let mut p99 = [0.0; 2];
-    let mut failed = Vec::new();
+    let mut faults = Vec::new();
     for (k, hostile) in [false, true].into_iter().enumerate() {
-        let r = run(secs, fifo, hostile, &dir);
+        let r = run(secs, fifo, hostile, dir);
         let (st, c) = (&r.status, &r.status["cycle"]);
         p99[k] = c["jitter_us"][1].as_f64().unwrap_or(f64::INFINITY);
         if !st["fault"].is_null() {
-            failed.push(format!(
+            faults.push(format!(
                 "the {} run faulted: {}",
                 if hostile { "hostile" } else { "quiet" },
                 st["fault"]
@@ -127,18 +127,33 @@ fn main() {
             st["state"]
         );
     }
-    let _ = std::fs::remove_dir_all(&dir);
     let allowed = (2.0 * p99[0]).max(p99[0] + 1000.0);
     println!(
         "p99 jitter: quiet {:.0} µs, hostile {:.0} µs (allowed under SCHED_FIFO: {allowed:.0} µs)",
         p99[0], p99[1]
     );
-    if fifo && p99[1] > allowed {
-        failed.push(format!(
+    let jitter = (fifo && p99[1] > allowed).then(|| {
+        format!(
             "p99 jitter {:.0} µs under hostile clients > {allowed:.0} µs",
             p99[1]
-        ));
+        )
+    });
+    (faults, jitter)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let check = args.iter().any(|a| a == "--check");
+    let (secs, fifo, dir) = common::setup("hostile-example", 5.0);
+    let (mut faults, mut jitter) = attempt(secs, fifo, &dir);
+    if check && faults.is_empty() && jitter.is_some() {
+        // a jitter rise once may be the VM's own noise (it pauses every thread now and then);
+        // a real one repeats: measure both runs again, and judge the second pair
+        println!("the p99 rose once; measuring both runs again");
+        (faults, jitter) = attempt(secs, fifo, &dir);
     }
+    let _ = std::fs::remove_dir_all(&dir);
+    let failed: Vec<String> = faults.into_iter().chain(jitter).collect();
     if check && !failed.is_empty() {
         for f in &failed {
             eprintln!("hostile: {f}");

@@ -122,6 +122,15 @@ fn every_cycle_is_recorded_and_read_back_with_its_events() {
     );
     let last = read::info(files.last().unwrap()).unwrap();
     assert_eq!(last.recorder["dropped_queue"], "0");
+    assert_eq!(info.truncated, None);
+    // a file cut short (as by a crash) is read up to the damage
+    let cut = dir.join("cut.mcap");
+    let bytes = std::fs::read(&files[0]).unwrap();
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let partial = read::info(&cut).unwrap();
+    assert!(partial.truncated.is_some(), "{partial:?}");
+    assert!(partial.channels["/pa10/cycle"] > 0);
+    assert!(partial.channels["/pa10/cycle"] < info.channels["/pa10/cycle"]);
     // the CSV export
     let out = dir.join("csv");
     let [c, e] = read::export_csv(&files[0], &out).unwrap();

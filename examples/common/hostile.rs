@@ -11,12 +11,16 @@ use serde_json::Value;
 
 /// One request line (raw bytes) and its answer; `None` when the server closed.
 pub fn ask(s: &mut UnixStream, line: &[u8]) -> Option<Value> {
-    s.write_all(line).ok()?;
-    s.write_all(b"\n").ok()?;
+    // a write may fail when the server has already answered and closed (the overlong line:
+    // it stops reading at the limit); the answer is still there to read
+    let sent = s.write_all(line).and_then(|()| s.write_all(b"\n"));
     let mut answer = String::new();
     BufReader::new(s.try_clone().ok()?)
         .read_line(&mut answer)
         .ok()?;
+    if answer.is_empty() && sent.is_err() {
+        return None;
+    }
     serde_json::from_str(&answer).ok()
 }
 

@@ -43,6 +43,8 @@ pub struct Info {
     pub incomplete: u64,
     /// The recorder's own counts at the end (written, dropped), from the file's metadata.
     pub recorder: BTreeMap<String, String>,
+    /// Why the file ends early, when it does (a crash cut it short; the rest was read).
+    pub truncated: Option<String>,
 }
 
 fn load(path: &Path) -> Result<Vec<u8>, ReadError> {
@@ -67,24 +69,32 @@ fn format(path: &Path, e: impl std::fmt::Display) -> ReadError {
     }
 }
 
-/// Every message of `path`: (topic, log time s, JSON payload).
-fn messages(path: &Path) -> Result<Vec<(String, f64, Vec<u8>)>, ReadError> {
+/// Messages as read: (topic, log time s, JSON payload).
+type Messages = Vec<(String, f64, Vec<u8>)>;
+
+/// Every message of `path`, and why the file ended early when it did (a recording cut short
+/// by a crash: what precedes the damage is read).
+fn messages(path: &Path) -> Result<(Messages, Option<String>), ReadError> {
     let buf = load(path)?;
     let mut out = Vec::new();
     for m in mcap::MessageStream::new(&buf).map_err(|e| format(path, e))? {
-        let m = m.map_err(|e| format(path, e))?;
-        out.push((
-            m.channel.topic.clone(),
-            m.log_time as f64 * 1e-9,
-            m.data.into_owned(),
-        ));
+        match m {
+            Ok(m) => out.push((
+                m.channel.topic.clone(),
+                m.log_time as f64 * 1e-9,
+                m.data.into_owned(),
+            )),
+            Err(e) if !out.is_empty() => return Ok((out, Some(e.to_string()))),
+            Err(e) => return Err(format(path, e)),
+        }
     }
-    Ok(out)
+    Ok((out, None))
 }
 
 /// The cycles recorded in `path`, in order.
 pub fn cycles(path: &Path) -> Result<Vec<CycleSample>, ReadError> {
     messages(path)?
+        .0
         .into_iter()
         .filter(|(t, ..)| t == "/pa10/cycle")
         .map(|(_, _, d)| serde_json::from_slice(&d).map_err(|e| format(path, e)))
@@ -94,6 +104,7 @@ pub fn cycles(path: &Path) -> Result<Vec<CycleSample>, ReadError> {
 /// The events recorded in `path`, in order.
 pub fn events(path: &Path) -> Result<Vec<Event>, ReadError> {
     messages(path)?
+        .0
         .into_iter()
         .filter(|(t, ..)| t == "/pa10/event")
         .map(|(_, _, d)| serde_json::from_slice(&d).map_err(|e| format(path, e)))
@@ -102,7 +113,7 @@ pub fn events(path: &Path) -> Result<Vec<Event>, ReadError> {
 
 /// What `path` holds.
 pub fn info(path: &Path) -> Result<Info, ReadError> {
-    let msgs = messages(path)?;
+    let (msgs, truncated) = messages(path)?;
     let mut channels = BTreeMap::new();
     let mut span = [f64::INFINITY, f64::NEG_INFINITY];
     let mut incomplete = 0;
@@ -133,6 +144,7 @@ pub fn info(path: &Path) -> Result<Info, ReadError> {
         span_s: span,
         incomplete,
         recorder,
+        truncated,
     })
 }
 

@@ -88,6 +88,11 @@ pub fn run(c: &RecordCmd) -> Result<()> {
                 println!("  {topic}: {n} messages");
             }
             println!("  cycles with incomplete feedback: {}", i.incomplete);
+            if let Some(t) = &i.truncated {
+                println!(
+                    "  the file ends early ({t}): a recording cut short; what precedes is read"
+                );
+            }
             if i.recorder.is_empty() {
                 println!("  recorder counts: not in this file (a rotated file before the last)");
             } else {
