@@ -507,6 +507,60 @@ fn the_python_client_drives_the_daemon_binary() {
     }
 }
 
+/// `pa10-ros2` (feature `ros2`) next to the `pa10d` binary on the simulated arm, read by
+/// Eclipse Cyclone DDS from Python with the ROS 2 types declared there (CI installs
+/// `cyclonedds`): `/joint_states` at ≥ 80 Hz, names, the link estimate `pa10 status` shows,
+/// the torque estimate as effort. A domain of its own; loopback only.
+#[cfg(feature = "ros2")]
+#[test]
+fn ros2_joint_states_reach_a_dds_implementation_we_did_not_write() {
+    let _serial = serial();
+    let dir = temp_dir("ros2");
+    let (_daemon, sock) = spawn_pa10d(&dir, |t| t);
+    let domain = (100 + std::process::id() % 100).to_string();
+    let _bridge = Reaped(
+        std::process::Command::new(env!("CARGO_BIN_EXE_pa10-ros2"))
+            .env("PA10D_SOCKET", &sock)
+            .env("ROS_DOMAIN_ID", &domain)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    );
+    // the arm holds: what pa10 status says is what /joint_states must carry
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
+        .args(["status", "--json"])
+        .env("PA10D_SOCKET", &sock)
+        .output()
+        .unwrap();
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let q: Vec<String> = v["status"]["trajectory"]["actual"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.to_string())
+        .collect();
+    let o = std::process::Command::new("python3")
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/ros2/check_joint_states.py"
+        ))
+        .arg(q.join(","))
+        .env("ROS_DOMAIN_ID", &domain)
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    eprintln!("ros2: {r}");
+    assert!(r["rate_hz"].as_f64().unwrap() >= 80.0, "{r}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// The one real-time end-to-end test: the `pa10d` binary on its socket with the simulated arm.
 #[test]
 fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {

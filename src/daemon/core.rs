@@ -151,6 +151,10 @@ pub struct Status {
     pub q_motor: [f64; 6],
     /// Motor currents, A (the last cycle's).
     pub current: [f64; 6],
+    /// The daemon's clock, s since it started (the last cycle or event it saw).
+    pub time_s: f64,
+    /// Joint torque estimate the compensation used last cycle, N·m.
+    pub tau: [f64; 6],
     /// Tool position of the setpoint, m (base frame).
     pub tool_position: [f64; 3],
     /// Tool orientation of the setpoint, quaternion w, x, y, z.
@@ -871,6 +875,8 @@ impl Core {
             setpoint,
             q_motor: self.last.map(|s| s.q_motor).unwrap_or([0.0; 6]),
             current: self.last.map(|s| s.current).unwrap_or([0.0; 6]),
+            time_s: self.now_s,
+            tau: self.ctl.as_ref().map_or([0.0; 6], |c| c.output().tau),
             tool_position: p,
             tool_quaternion: q,
             payload_n: payload,
