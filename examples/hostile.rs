@@ -91,9 +91,9 @@ fn run(secs: f64, fifo: bool, hostile: bool, dir: &Path) -> Run {
 /// clients exceeds max(2×, +1 ms) of the quiet run's under SCHED_FIFO.
 fn attempt(secs: f64, fifo: bool, dir: &std::path::Path) -> (Vec<String>, Option<String>) {
     println!(
-        "| run | s | refused | good moves | cycles | overruns | incomplete / paused | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | RSS + [KiB] | ended |"
+        "| run | s | refused | good moves | cycles | overruns | incomplete / paused | jitter p50 / p99 / max [µs] | compute p50 / p99 / max [µs] | loop waited for a client: n, p99 / max [µs] | RSS + [KiB] | ended |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut p99 = [0.0; 2];
     let mut faults = Vec::new();
     for (k, hostile) in [false, true].into_iter().enumerate() {
@@ -108,7 +108,7 @@ fn attempt(secs: f64, fifo: bool, dir: &std::path::Path) -> (Vec<String>, Option
             ));
         }
         println!(
-            "| {} | {:.1} | {} | {} | {} | {} | {} / {} | {} | {} | {} | {} |",
+            "| {} | {:.1} | {} | {} | {} | {} | {} / {} | {} | {} | {}, {:.0} / {:.0} | {} | {} |",
             if hostile {
                 "4 hostile clients"
             } else {
@@ -123,6 +123,9 @@ fn attempt(secs: f64, fifo: bool, dir: &std::path::Path) -> (Vec<String>, Option
             st["link"]["paused"],
             common::triple(&c["jitter_us"]),
             common::triple(&c["compute_us"]),
+            c["lock_waits"],
+            c["lock_wait_us"][1].as_f64().unwrap_or(0.0),
+            c["lock_wait_us"][2].as_f64().unwrap_or(0.0),
             r.rss_grown_kib,
             st["state"]
         );

@@ -29,7 +29,7 @@ pub(crate) struct Server {
 impl Server {
     /// Starts serving and waits (≤ 5 s) until the socket exists.
     pub(crate) fn start(
-        core: std::sync::Arc<std::sync::Mutex<pa10::daemon::core::Core>>,
+        core: std::sync::Arc<pa10::daemon::runtime::SharedCore>,
         path: &Path,
         max_clients: usize,
     ) -> Self {
@@ -328,7 +328,6 @@ fn a_bus_off_is_a_link_fault_that_stops_the_arm() {
     ls.run_for(0.05);
     ls.core
         .lock()
-        .unwrap()
         .handle_bus(Ok(pa10::can::BusEvent::BusOff), ls.now());
     ls.run_for(0.05);
     let st = status(&ls);
@@ -379,6 +378,125 @@ fn a_paused_control_thread_is_not_a_silent_controller() {
     assert!(
         after.link.incomplete - before.link.incomplete <= 2,
         "{after:?}"
+    );
+    // and the control thread measured those waits for the lock (status.cycle.lock_wait_us)
+    assert!(
+        after.cycle.lock_waits >= before.cycle.lock_waits + 5,
+        "{after:?}"
+    );
+    assert!(after.cycle.lock_wait_us[2] >= 20_000.0, "{after:?}");
+}
+
+/// Pins the calling thread to `cpu`.
+fn pin_to(cpu: usize) {
+    // SAFETY: a zeroed cpu_set_t is a valid empty set; CPU_SET writes inside it, and
+    // sched_setaffinity(0, …) reads it for the calling thread only.
+    #[allow(unsafe_code)]
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        assert_eq!(
+            libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set),
+            0,
+            "sched_setaffinity: {}",
+            std::io::Error::last_os_error()
+        );
+    }
+}
+
+/// The first CPU this process may run on.
+fn first_cpu() -> usize {
+    // SAFETY: as in `pin_to`; sched_getaffinity fills the set for the calling thread.
+    #[allow(unsafe_code)]
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set);
+        (0..libc::CPU_SETSIZE as usize)
+            .find(|&c| libc::CPU_ISSET(c, &set))
+            .unwrap_or(0)
+    }
+}
+
+/// Spins (keeps the CPU) for `d` of wall time.
+fn spin(d: Duration) {
+    let end = Instant::now() + d;
+    while Instant::now() < end {
+        std::hint::spin_loop();
+    }
+}
+
+/// The priority inversion that a `std::sync::Mutex` allows, on one CPU: a client thread at
+/// normal priority holds the core's lock; the SCHED_FIFO 80 control thread asks for it; a
+/// busy real-time thread of middle priority (FIFO 50) becomes runnable. With a plain mutex the
+/// middle thread keeps the holder — and so the control thread — off the CPU for as long as it
+/// spins (400 ms here; a 20 ms feedback window is lost after 10 cycles). The core's lock
+/// inherits priority: the holder runs at 80 until it lets go, so the control thread waits only
+/// for the holder's own 100 ms. Needs SCHED_FIFO (root or CAP_SYS_NICE); without it the test
+/// says so and passes, unless `PA10_REQUIRE_FIFO` is set (CI sets it).
+#[test]
+fn a_client_holding_the_core_lock_runs_at_the_control_threads_priority() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let _serial = serial();
+    let permitted = std::thread::spawn(|| pa10::daemon::realtime::set_fifo(10).is_ok())
+        .join()
+        .unwrap();
+    if !permitted {
+        assert!(
+            std::env::var_os("PA10_REQUIRE_FIFO").is_none(),
+            "SCHED_FIFO is not permitted here and PA10_REQUIRE_FIFO is set"
+        );
+        eprintln!("skipped: SCHED_FIFO not permitted");
+        return;
+    }
+    let dir = temp_dir("inversion");
+    let loaded = Config::load(&config(&dir, &Model::nominal())).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let core = pa10::daemon::runtime::share(pa10::daemon::core::Core::from_config(&loaded));
+    let cpu = first_cpu();
+    let (held, asking) = (
+        Arc::new(AtomicBool::new(false)),
+        Arc::new(AtomicBool::new(false)),
+    );
+    let client = {
+        let (core, held) = (core.clone(), held.clone());
+        std::thread::spawn(move || {
+            pin_to(cpu);
+            let _g = pa10::daemon::runtime::lock(&core);
+            held.store(true, Ordering::SeqCst);
+            spin(Duration::from_millis(100));
+        })
+    };
+    while !held.load(Ordering::SeqCst) {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let control = {
+        let (core, asking) = (core.clone(), asking.clone());
+        std::thread::spawn(move || {
+            pin_to(cpu);
+            pa10::daemon::realtime::set_fifo(80).unwrap();
+            asking.store(true, Ordering::SeqCst);
+            let t = Instant::now();
+            drop(pa10::daemon::runtime::lock(&core));
+            t.elapsed()
+        })
+    };
+    while !asking.load(Ordering::SeqCst) {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    std::thread::sleep(Duration::from_millis(5));
+    let middle = std::thread::spawn(move || {
+        pin_to(cpu);
+        pa10::daemon::realtime::set_fifo(50).unwrap();
+        spin(Duration::from_millis(400));
+    });
+    let waited = control.join().unwrap();
+    client.join().unwrap();
+    middle.join().unwrap();
+    eprintln!("the control thread waited {waited:?} for the lock");
+    assert!(
+        waited < Duration::from_millis(250),
+        "the control thread waited {waited:?} behind a preempted client"
     );
 }
 
@@ -897,7 +1015,7 @@ fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
     let _busy = busy();
     let mut ls = lockstep("stale", &Model::nominal());
     let plan = |ls: &Lockstep, q: [f64; 6]| {
-        let basis = ls.core.lock().unwrap().plan_basis().unwrap();
+        let basis = ls.core.lock().plan_basis().unwrap();
         let mv = Move::joints(
             &basis.model,
             basis.from,
@@ -916,24 +1034,17 @@ fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
         true
     );
     assert_eq!(wait_holding(&mut ls, 5.0)["state"], "holding");
-    let r = ls.core.lock().unwrap().submit(Command::Start { mv, basis });
+    let r = ls.core.lock().submit(Command::Start { mv, basis });
     assert_eq!(r, Err(CommandError::Stale));
     // planned, then the model was replaced: refused too
     let (mv, basis) = plan(&ls, a);
     let model = std::sync::Arc::new(Model::nominal());
-    ls.core
-        .lock()
-        .unwrap()
-        .submit(Command::LoadModel(model))
-        .unwrap();
-    let r = ls.core.lock().unwrap().submit(Command::Start { mv, basis });
+    ls.core.lock().submit(Command::LoadModel(model)).unwrap();
+    let r = ls.core.lock().submit(Command::Start { mv, basis });
     assert_eq!(r, Err(CommandError::Stale));
     // planned from what is current: accepted
     let (mv, basis) = plan(&ls, a);
-    assert_eq!(
-        ls.core.lock().unwrap().submit(Command::Start { mv, basis }),
-        Ok(())
-    );
+    assert_eq!(ls.core.lock().submit(Command::Start { mv, basis }), Ok(()));
     assert_eq!(wait_holding(&mut ls, 5.0)["state"], "holding");
     // a basis is refused outright while a move runs
     assert_eq!(
@@ -942,7 +1053,7 @@ fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
     );
     ls.run_for(0.01);
     assert!(matches!(
-        ls.core.lock().unwrap().plan_basis(),
+        ls.core.lock().plan_basis(),
         Err(CommandError::Busy)
     ));
 }

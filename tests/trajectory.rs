@@ -331,7 +331,7 @@ fn one_commander_at_a_time_with_the_lease() {
     assert_eq!(ask(&ls, b, back)["ok"], true);
 }
 
-fn lock(ls: &Lockstep) -> std::sync::MutexGuard<'_, pa10::daemon::core::Core> {
+fn lock(ls: &Lockstep) -> pa10::daemon::runtime::CoreGuard<'_> {
     pa10::daemon::runtime::lock(&ls.core)
 }
 

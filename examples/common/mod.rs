@@ -128,7 +128,7 @@ pub fn setup(tag: &str, default_s: f64) -> (f64, bool, std::path::PathBuf) {
 /// Moves the arm of `core` back and forth between two joint targets for `secs` (real
 /// time), each move awaited; the moves made.
 #[allow(dead_code)]
-pub fn back_and_forth(core: &std::sync::Mutex<pa10::daemon::core::Core>, secs: f64) -> usize {
+pub fn back_and_forth(core: &pa10::daemon::runtime::SharedCore, secs: f64) -> usize {
     let a = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
     let b = [0.3, 0.6, 1.3, 0.4, 0.8, 0.5];
     let end = std::time::Instant::now() + std::time::Duration::from_secs_f64(secs);

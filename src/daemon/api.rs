@@ -5,8 +5,8 @@
 //! is validated and a refused one leaves the robot as it was.
 
 use std::path::Path;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use serde::Deserialize;
@@ -16,9 +16,9 @@ use tokio::net::UnixListener;
 
 use super::control::CommandError;
 use super::control::{Stream, Tolerances};
-use super::core::{ClientId, Command, Core, LOCAL, PlanBasis};
+use super::core::{ClientId, Command, LOCAL, PlanBasis};
 use super::motion::{CartesianPoint, Move, MoveError, cartesian_waypoints};
-use super::runtime::lock;
+use super::runtime::{SharedCore, lock};
 use super::trajectory::TrajectoryPoint;
 use crate::model::{Model, frame_from_pose};
 
@@ -232,7 +232,7 @@ pub fn read_model(dir: &Path, path: &Path) -> Result<Model, String> {
 /// Plans a move outside the lock (≈ 1 ms for a Cartesian one) from a basis taken under it,
 /// then hands it over; refused if the setpoint or the model changed in between.
 fn plan_and_start(
-    core: &Mutex<Core>,
+    core: &SharedCore,
     client: ClientId,
     plan: impl FnOnce(&PlanBasis) -> Result<Move, MoveError>,
 ) -> Result<Value, CommandError> {
@@ -253,12 +253,12 @@ fn plan_and_start(
 ///
 /// The lock on the core is held only to read a snapshot or to apply a command: planning a
 /// move and parsing a model file happen outside it, so the 2 ms cycle never waits for them.
-pub fn handle(core: &Mutex<Core>, line: &str) -> Value {
+pub fn handle(core: &SharedCore, line: &str) -> Value {
     handle_from(core, line, LOCAL)
 }
 
 /// As [`handle`], for the connection `client` (the motion lease is per connection).
-pub fn handle_from(core: &Mutex<Core>, line: &str, client: ClientId) -> Value {
+pub fn handle_from(core: &SharedCore, line: &str, client: ClientId) -> Value {
     let submit = |cmd| {
         answer(
             lock(core)
@@ -470,7 +470,7 @@ fn tolerances(
 
 /// Hands a joint trajectory to the core: `{"ok":true,"id":N}` or the refusal.
 fn follow(
-    core: &Mutex<Core>,
+    core: &SharedCore,
     client: ClientId,
     points: Vec<TrajectoryPoint>,
     tolerances: Tolerances,
@@ -511,7 +511,7 @@ pub async fn serve(
     path: &Path,
     mode: u32,
     max_clients: usize,
-    core: Arc<Mutex<Core>>,
+    core: Arc<SharedCore>,
     health: Arc<ApiHealth>,
     mut stop: tokio::sync::watch::Receiver<bool>,
 ) -> std::io::Result<()> {
@@ -682,7 +682,7 @@ async fn read_line<R: tokio::io::AsyncBufRead + Unpin>(
 /// Connection ids (0 is [`LOCAL`]).
 static NEXT_CLIENT: AtomicU64 = AtomicU64::new(1);
 
-async fn connection(conn: tokio::net::UnixStream, core: Arc<Mutex<Core>>, id: ClientId) {
+async fn connection(conn: tokio::net::UnixStream, core: Arc<SharedCore>, id: ClientId) {
     let (r, mut w) = conn.into_split();
     let mut r = BufReader::new(r);
     let mut buf = Vec::with_capacity(1024);

@@ -202,6 +202,7 @@ pub struct Core {
     stats: CycleStats,
     jitter: Histogram,
     compute: Histogram,
+    lock_wait: Histogram,
     now_s: f64,
     exit: Exit,
     /// A STOP or ESTOP went out since the last connection.
@@ -250,6 +251,7 @@ impl Core {
             },
             jitter: Histogram::default(),
             compute: Histogram::default(),
+            lock_wait: Histogram::default(),
             now_s: 0.0,
             exit: Exit::Running,
             stop_sent: false,
@@ -411,6 +413,13 @@ impl Core {
     /// Records the compute time of the cycle just answered (µs, measured by the shell).
     pub fn record_compute(&mut self, us: f64) {
         self.compute.record(us);
+    }
+
+    /// Records a wait of the control thread for the core's lock, µs (measured by the shell
+    /// when a client held it).
+    pub fn record_lock_wait(&mut self, us: f64) {
+        self.lock_wait.record(us);
+        self.stats.lock_waits += 1;
     }
 
     /// Cycles started (SYNC sent) so far.
@@ -888,6 +897,7 @@ impl Core {
             cycle: CycleStats {
                 jitter_us: self.jitter.summary(),
                 compute_us: self.compute.summary(),
+                lock_wait_us: self.lock_wait.summary(),
                 ..self.stats
             },
             trajectory: self

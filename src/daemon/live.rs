@@ -9,8 +9,8 @@
 //! subscriptions per client; anything else is answered with a status message or closes.
 
 use std::net::SocketAddr;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
@@ -22,8 +22,7 @@ use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
 use tokio_tungstenite::tungstenite::http::HeaderValue;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 
-use super::core::Core;
-use super::runtime::lock;
+use super::runtime::{SharedCore, lock};
 use crate::record::CYCLE_SCHEMA;
 
 /// The WebSocket subprotocol Foxglove speaks.
@@ -103,7 +102,7 @@ struct Subscription {
 /// Serves the live view on `listener` (bind it to 127.0.0.1) until `stop` turns true.
 pub async fn serve(
     listener: TcpListener,
-    core: Arc<Mutex<Core>>,
+    core: Arc<SharedCore>,
     rate_hz: f64,
     mut stop: tokio::sync::watch::Receiver<bool>,
 ) {
@@ -135,7 +134,7 @@ pub async fn serve(
 async fn client(
     tcp: tokio::net::TcpStream,
     peer: SocketAddr,
-    core: Arc<Mutex<Core>>,
+    core: Arc<SharedCore>,
     rate_hz: f64,
     mut stop: tokio::sync::watch::Receiver<bool>,
 ) -> Result<(), tokio_tungstenite::tungstenite::Error> {

@@ -8,8 +8,8 @@
 //! `std::thread::sleep` (precise) and then drains what arrived; while it expects frames it
 //! waits on the bus with an absolute deadline.
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 use super::config::Loaded;
@@ -35,16 +35,45 @@ pub enum DaemonError {
     Thread(String),
 }
 
-/// Locks the core, recovering from a poisoned mutex (a panicked holder must not stop the
-/// arm's supervision).
-pub fn lock(m: &Mutex<Core>) -> MutexGuard<'_, Core> {
-    m.lock().unwrap_or_else(|p| p.into_inner())
+/// The core as the control thread and its clients share it: a priority-inheriting mutex (a
+/// Linux PI futex). A client thread at normal priority that holds it when the SCHED_FIFO
+/// control thread asks runs at the control thread's priority until it lets go, so a busy
+/// host cannot preempt the holder and stall the loop behind it (a priority inversion: with
+/// `std::sync::Mutex` a real-time run with hostile clients on a loaded host faulted on stale
+/// feedback after 4 ms compute-time stalls). It does not poison: a panicked holder releases
+/// it and the arm's supervision goes on.
+pub type SharedCore = priority_inheriting_lock::PriorityInheritingLock<Core>;
+
+/// A guard on [`SharedCore`].
+pub type CoreGuard<'a> = priority_inheriting_lock::PriorityInheritingLockGuard<'a, Core>;
+
+/// Shares `core` between the control thread and its clients.
+pub fn share(core: Core) -> Arc<SharedCore> {
+    Arc::new(SharedCore::new(core))
+}
+
+/// Locks the core (blocking; boosts the holder to the caller's priority meanwhile).
+pub fn lock(m: &SharedCore) -> CoreGuard<'_> {
+    m.lock()
+}
+
+/// Locks the core for the control thread and, when a client held it, records how long the
+/// thread waited (`status.cycle.lock_wait_us`: the evidence that a client cannot stall the
+/// loop).
+fn lock_rt(m: &SharedCore) -> CoreGuard<'_> {
+    if let Some(g) = m.try_lock() {
+        return g;
+    }
+    let t = Instant::now();
+    let mut g = m.lock();
+    g.record_lock_wait(t.elapsed().as_secs_f64() * 1e6);
+    g
 }
 
 /// A running daemon core on a real bus, in real time.
 pub struct Daemon {
     /// The core (the API's handle).
-    pub core: Arc<Mutex<Core>>,
+    pub core: Arc<SharedCore>,
     stop: Arc<AtomicBool>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
@@ -64,7 +93,7 @@ impl Daemon {
                 Err(e) => tracing::warn!(error = %e, "mlockall not permitted; memory may page"),
             }
         }
-        let core = Arc::new(Mutex::new(Core::from_config(loaded)));
+        let core = share(Core::from_config(loaded));
         let stop = Arc::new(AtomicBool::new(false));
         let prio = c.control.realtime.sched_fifo_priority;
         let thread = {
@@ -120,7 +149,7 @@ const SHUTDOWN_LIMIT_S: f64 = 10.0;
 
 fn control_thread<B: CanBus>(
     mut bus: B,
-    core: Arc<Mutex<Core>>,
+    core: Arc<SharedCore>,
     stop: Arc<AtomicBool>,
     prio: Option<u8>,
 ) {
@@ -144,20 +173,20 @@ fn control_thread<B: CanBus>(
     }
     let t0 = Instant::now();
     let secs = |t: Instant| t.duration_since(t0).as_secs_f64();
-    lock(&core).start(0.0);
+    lock_rt(&core).start(0.0);
     let mut shutdown_at: Option<Instant> = None;
     let mut cycle_start = Instant::now();
     loop {
         if shutdown_at.is_none() && stop.load(Ordering::SeqCst) {
             shutdown_at = Some(Instant::now());
-            let _ = lock(&core).submit(Command::Shutdown);
+            let _ = lock_rt(&core).submit(Command::Shutdown);
         }
         if shutdown_at.is_some_and(|t| t.elapsed().as_secs_f64() > SHUTDOWN_LIMIT_S) {
             tracing::error!("shutdown did not complete in time; leaving the control thread");
             return;
         }
         let (deadline, listen, cycles, syncs) = {
-            let c = lock(&core);
+            let c = lock_rt(&core);
             if c.is_closed() {
                 return;
             }
@@ -175,7 +204,7 @@ fn control_thread<B: CanBus>(
             let ev = rt.block_on(bus.recv(wait));
             woke = Instant::now();
             let now = secs(woke);
-            let mut c = lock(&core);
+            let mut c = lock_rt(&core);
             if !matches!(ev, Err(BusError::Timeout)) {
                 c.handle_bus(ev, now);
                 // after a late wake-up (a host pause) the rest of the cycle's feedback is
@@ -192,12 +221,12 @@ fn control_thread<B: CanBus>(
             woke = Instant::now();
             let now = secs(woke);
             // what arrived while asleep (heartbeats, stray frames), then the deadline
-            let mut c = lock(&core);
+            let mut c = lock_rt(&core);
             drain_ready(&rt, &mut bus, &mut c, now);
             c.handle_timeout(now);
         }
         flush(&rt, &mut bus, &core, secs(Instant::now()));
-        let mut c = lock(&core);
+        let mut c = lock_rt(&core);
         if c.syncs() > syncs {
             cycle_start = woke;
         }
@@ -230,12 +259,12 @@ async fn ready_now<B: CanBus>(bus: &mut B) -> Option<Result<crate::can::bus::Bus
 }
 
 /// Sends what the core queued; a send error is the core's to judge.
-fn flush<B: CanBus>(rt: &tokio::runtime::Runtime, bus: &mut B, core: &Mutex<Core>, now: f64) {
+fn flush<B: CanBus>(rt: &tokio::runtime::Runtime, bus: &mut B, core: &SharedCore, now: f64) {
     loop {
         // one lock for what is queued (a cycle's commands, a SYNC, a request), no allocation
         let mut out: [Option<crate::can::Frame>; 16] = [None; 16];
         {
-            let mut c = lock(core);
+            let mut c = lock_rt(core);
             for slot in out.iter_mut() {
                 match c.poll_transmit() {
                     Some(f) => *slot = Some(f),
@@ -248,7 +277,7 @@ fn flush<B: CanBus>(rt: &tokio::runtime::Runtime, bus: &mut B, core: &Mutex<Core
         }
         for f in out.into_iter().flatten() {
             if let Err(e) = rt.block_on(bus.send(f)) {
-                lock(core).handle_bus(Err(e), now);
+                lock_rt(core).handle_bus(Err(e), now);
             }
         }
     }

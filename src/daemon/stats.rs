@@ -67,4 +67,8 @@ pub struct CycleStats {
     pub compute_us: [f64; 3],
     /// Worst-case bus load of the configured rate, %.
     pub bus_load_pct: f64,
+    /// Times the control thread found the core's lock held by a client and waited.
+    pub lock_waits: u64,
+    /// How long those waits took, p50 / p99 / max, µs (zeros when it never waited).
+    pub lock_wait_us: [f64; 3],
 }

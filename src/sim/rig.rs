@@ -153,7 +153,7 @@ impl Drop for SimulatedArm {
 /// millisecond; the core is woken exactly at its deadlines.
 pub struct Lockstep {
     /// The daemon core, behind the same mutex the API handler takes.
-    pub core: Arc<Mutex<Core>>,
+    pub core: Arc<crate::daemon::runtime::SharedCore>,
     /// The simulated controller (ground truth, fault injection).
     pub servo: ServoSim,
     now: f64,
@@ -173,7 +173,7 @@ impl Lockstep {
     pub fn new(mut core: Core, servo: ServoSim) -> Self {
         core.start(0.0);
         Self {
-            core: Arc::new(Mutex::new(core)),
+            core: crate::daemon::runtime::share(core),
             servo,
             now: 0.0,
             next_tick: 0.0,
