@@ -94,9 +94,13 @@ fn run(path: &Path) -> Result<()> {
     let loaded = Config::load(path)?;
     let filter =
         tracing_subscriber::EnvFilter::try_new(&loaded.config.log_level).context("log_level")?;
+    // Lines go to stderr through a writer thread: the control thread never waits on the
+    // stderr lock a client's log line holds (a priority inversion, as on the core's lock);
+    // when the writer falls 128 000 lines behind, lines are dropped rather than waited for.
+    let (stderr, _flush_on_exit) = tracing_appender::non_blocking(std::io::stderr());
     tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr)
+        .with_writer(stderr)
         .init();
     tracing::info!(config = %path.display(), rate_hz = loaded.config.control.rate_hz, "starting");
     // One daemon per socket: claimed before the bus is touched.
