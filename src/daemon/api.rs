@@ -1,6 +1,6 @@
 //! The client API: newline-delimited JSON over a Unix socket (`docs/api.md`).
 //!
-//! [`handle`] is the request handler (JSON in, JSON out, against the daemon's [`Core`]);
+//! [`handle`] is the request handler (JSON in, JSON out, against the daemon's [`Core`](super::core::Core));
 //! [`serve`] is the thin tokio shell that accepts connections and moves lines. Every request
 //! is validated and a refused one leaves the robot as it was.
 
