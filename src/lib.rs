@@ -17,6 +17,8 @@
 //! - [`sim`]: the simulated PA10 (hidden truth, servo controller, campaigns).
 //! - [`can`] and [`daemon`]: the protocol, buses and the control daemon's core.
 //! - [`record`]: recording every control cycle to MCAP, and reading recordings back.
+//! - [`ros2`]: the ROS 2 messages of the `pa10-ros2` bridge and their translation to and
+//!   from the daemon's requests (pure; the DDS side is the binary's).
 //!
 //! Units are SI throughout: metres, radians, newtons, newton-metres, seconds.
 //! Joint vectors are `[f64; 6]` ordered J1 … J6 (S1, S2, E1, E2, W1, W2).
@@ -39,5 +41,6 @@ pub mod model;
 pub mod noise;
 pub mod plot;
 pub mod record;
+pub mod ros2;
 pub mod sim;
 pub mod stats;

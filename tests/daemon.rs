@@ -636,15 +636,7 @@ fn ros2_joint_states_reach_a_dds_implementation_we_did_not_write() {
     let dir = temp_dir("ros2");
     let (_daemon, sock) = spawn_pa10d(&dir, |t| t);
     let domain = (100 + std::process::id() % 100).to_string();
-    let _bridge = Reaped(
-        std::process::Command::new(env!("CARGO_BIN_EXE_pa10-ros2"))
-            .env("PA10D_SOCKET", &sock)
-            .env("ROS_DOMAIN_ID", &domain)
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap(),
-    );
+    let _bridge = ros2_bridge(&sock, &domain, "enhanced");
     // the arm holds: what pa10 status says is what /joint_states must carry
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
         .args(["status", "--json"])
@@ -677,6 +669,61 @@ fn ros2_joint_states_reach_a_dds_implementation_we_did_not_write() {
     eprintln!("ros2: {r}");
     assert!(r["rate_hz"].as_f64().unwrap() >= 80.0, "{r}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `pa10-ros2` on the daemon at `sock`, in DDS domain `domain`, with service `mapping`.
+#[cfg(feature = "ros2")]
+fn ros2_bridge(sock: &Path, domain: &str, mapping: &str) -> Reaped {
+    Reaped(
+        std::process::Command::new(env!("CARGO_BIN_EXE_pa10-ros2"))
+            .env("PA10D_SOCKET", sock)
+            .env("ROS_DOMAIN_ID", domain)
+            .env("PA10_ROS2_SERVICE_MAPPING", mapping)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap(),
+    )
+}
+
+/// The FollowJointTrajectory action, the Trigger services and /diagnostics of `pa10-ros2`,
+/// driven by Eclipse Cyclone DDS from Python through the raw DDS topics a ROS 2 action is made
+/// of (`tests/ros2/follow_trajectory.py`, the ROS 2 IDL types declared there), under both
+/// service mappings (rmw_cyclonedds' request header, and the enhanced mapping of rmw_fastrtps):
+/// a goal in another joint order with its start state at t = 0 succeeds and the arm arrives
+/// (checked on pa10d's socket); unknown joints end INVALID_JOINTS with the name; a goal pa10d
+/// refuses ends INVALID_GOAL with pa10d's words; a cancel stops the arm short of its goal
+/// (CANCELED); `~/stop` answers success; `/diagnostics` names the loop's state.
+#[cfg(feature = "ros2")]
+#[test]
+fn ros2_follow_joint_trajectory_through_a_dds_implementation_we_did_not_write() {
+    let _serial = serial();
+    for (k, mapping) in ["cyclone", "enhanced"].into_iter().enumerate() {
+        let dir = temp_dir(&format!("ros2-fjt-{mapping}"));
+        let (_daemon, sock) = spawn_pa10d(&dir, |t| t);
+        let domain = (10 + 2 * (std::process::id() % 40) + k as u32).to_string();
+        let _bridge = ros2_bridge(&sock, &domain, mapping);
+        let o = std::process::Command::new("python3")
+            .arg(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/tests/ros2/follow_trajectory.py"
+            ))
+            .arg(mapping)
+            .env("PA10D_SOCKET", &sock)
+            .env("ROS_DOMAIN_ID", &domain)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{mapping}: {}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+        eprintln!("ros2 {mapping}: {r}");
+        assert!(r["goal_succeeded"]["worst_error_rad"].as_f64().unwrap() < 0.005);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
 
 /// The one real-time end-to-end test: the `pa10d` binary on its socket with the simulated arm.

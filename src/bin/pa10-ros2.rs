@@ -1,45 +1,68 @@
 //! `pa10-ros2`: a ROS 2 face for `pa10d`, as a separate process that is a client of its
 //! socket (never inside the control process). Pure Rust DDS (ros2-client over RustDDS), no
-//! ROS installation. Publishes `/joint_states` (sensor_msgs/JointState: the link estimate,
-//! its velocity, the torque estimate; joints `pa10_joint_1…6`; reliable, keep-last 10) at the
-//! status stream's rate (≤ 100 Hz). Domain from `ROS_DOMAIN_ID` (default 0).
+//! ROS installation. Domain from `ROS_DOMAIN_ID` (default 0). It serves:
 //!
-//! Not yet: the FollowJointTrajectory action, `~/stop` / `~/reset`, `/diagnostics`.
+//! - `/joint_states` (sensor_msgs/JointState: the link estimate, its velocity, the torque
+//!   estimate; joints `pa10_joint_1…6`; reliable, keep-last 10) at the status stream's rate
+//!   (≤ 100 Hz);
+//! - the action `/pa10_controller/follow_joint_trajectory`
+//!   (control_msgs/action/FollowJointTrajectory): every goal is accepted and ends with a
+//!   result code — a goal the arm cannot follow as INVALID_GOAL / INVALID_JOINTS /
+//!   OLD_HEADER_TIMESTAMP with the daemon's or the translation's words; feedback at 20 Hz; a
+//!   cancel stops the arm (controlled stop) and ends the goal CANCELED; a newer goal replaces
+//!   the running one (CANCELED, INVALID_GOAL, as ros2_controllers' joint_trajectory_controller);
+//! - `std_srvs/Trigger` services `/pa10_driver/stop` and `/pa10_driver/reset`;
+//! - `/diagnostics` (diagnostic_msgs/DiagnosticArray) once a second: faults, loop timing,
+//!   link counters, bus load.
+//!
+//! The message types and translations are `pa10::ros2` (pure, unit-tested); this file is the
+//! DDS and socket shell, one thread (smol's local executor).
 
+use std::cell::RefCell;
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::net::UnixStream;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::rc::Rc;
+use std::time::Duration;
 
-use anyhow::{Context as _, Result, bail};
-use clap::Parser;
+use anyhow::{Context as _, Result, anyhow, bail};
+use clap::{Parser, ValueEnum};
+use pa10::ros2::{
+    DiagnosticArray, Ending, FollowJointTrajectoryFeedback, FollowJointTrajectoryGoal,
+    FollowJointTrajectoryResult, Header, JOINT_NAMES, JointState, Time, TrajectoryReport,
+    TriggerRequest, TriggerResponse, code,
+};
+use ros2_client::action::{
+    ActionServerQosPolicies, AsyncActionServer, ExecutingGoalHandle, GoalEndStatus,
+};
 use ros2_client::{
-    Context, ContextOptions, MessageTypeName, Name, NodeName, NodeOptions, QosProfile,
-    builtin_interfaces::Time,
+    ActionTypeName, Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions,
+    QosProfile, ServiceMapping, ServiceTypeName,
     qos::{Durability, History, WhenFull},
 };
-use serde::Serialize;
+use serde_json::{Value, json};
+use smol::future::FutureExt as _;
+use smol::io::AsyncBufReadExt as _;
+use smol::{Async, LocalExecutor, Timer};
 
-/// std_msgs/Header.
-#[derive(Serialize, Clone, Debug)]
-struct Header {
-    stamp: Time,
-    frame_id: String,
-}
+type Goal = FollowJointTrajectoryGoal;
+type Server = AsyncActionServer<Goal, FollowJointTrajectoryResult, FollowJointTrajectoryFeedback>;
 
-/// sensor_msgs/JointState.
-#[derive(Serialize, Clone, Debug)]
-struct JointState {
-    header: Header,
-    name: Vec<String>,
-    position: Vec<f64>,
-    velocity: Vec<f64>,
-    effort: Vec<f64>,
+/// How request and reply of a service travel (the RMW of the ROS 2 side decides).
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Mapping {
+    /// rmw_fastrtps (the default RMW of Humble and Jazzy) and rmw_connextdds.
+    Enhanced,
+    /// rmw_cyclonedds.
+    Cyclone,
+    /// The RPC-over-DDS basic mapping.
+    Basic,
 }
 
 #[derive(Parser)]
 #[command(
     version,
-    about = "A ROS 2 face for pa10d: /joint_states from its socket"
+    about = "A ROS 2 face for pa10d: /joint_states, FollowJointTrajectory, ~/stop, ~/reset, /diagnostics"
 )]
 struct Args {
     /// pa10d's API socket.
@@ -48,10 +71,85 @@ struct Args {
     /// Joint states per second (1…100: the daemon's status stream rate).
     #[arg(long, default_value_t = 100.0)]
     rate_hz: f64,
+    /// The service mapping of the ROS 2 side's RMW.
+    #[arg(
+        long,
+        env = "PA10_ROS2_SERVICE_MAPPING",
+        value_enum,
+        default_value = "enhanced"
+    )]
+    service_mapping: Mapping,
 }
 
-fn six(v: &serde_json::Value) -> Option<[f64; 6]> {
-    serde_json::from_value(v.clone()).ok()
+/// How long a request to pa10d may take, s.
+const CALL_TIMEOUT_S: u64 = 5;
+/// Feedback period of a running goal (joint_trajectory_controller's action_monitor_rate 20 Hz).
+const MONITOR_PERIOD: Duration = Duration::from_millis(50);
+/// How long a finished goal waits for its client's result request.
+const RESULT_WAIT: Duration = Duration::from_secs(60);
+
+/// The request connection to pa10d (one request, one answer line).
+struct Daemon {
+    conn: RefCell<(BufReader<UnixStream>, UnixStream)>,
+}
+
+impl Daemon {
+    fn connect(path: &Path) -> Result<Self> {
+        let s = UnixStream::connect(path)
+            .with_context(|| format!("connecting to pa10d at {}", path.display()))?;
+        s.set_read_timeout(Some(Duration::from_secs(CALL_TIMEOUT_S)))?;
+        s.set_write_timeout(Some(Duration::from_secs(CALL_TIMEOUT_S)))?;
+        Ok(Self {
+            conn: RefCell::new((BufReader::new(s.try_clone()?), s)),
+        })
+    }
+
+    /// The daemon's answer to `req`: Ok with the answer when `ok`, Err with its words.
+    fn call(&self, req: &Value) -> Result<Value, String> {
+        let mut c = self.conn.borrow_mut();
+        let mut line = req.to_string();
+        line.push('\n');
+        c.1.write_all(line.as_bytes())
+            .map_err(|e| format!("pa10d: {e}"))?;
+        let mut answer = String::new();
+        c.0.read_line(&mut answer)
+            .map_err(|e| format!("pa10d: {e}"))?;
+        let v: Value = serde_json::from_str(&answer).map_err(|e| format!("pa10d: {e}"))?;
+        if v["ok"] == true {
+            Ok(v)
+        } else {
+            Err(v["error"].as_str().unwrap_or("refused").to_string())
+        }
+    }
+}
+
+/// The latest status the subscription brought, and the goal being followed.
+#[derive(Default)]
+struct Shared {
+    status: Option<Value>,
+    active: Option<Active>,
+}
+
+struct Active {
+    handle: ExecutingGoalHandle<Goal>,
+    /// The daemon's trajectory id.
+    id: u64,
+    canceling: bool,
+}
+
+fn now() -> Time {
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap_or_default();
+    Time::from_secs(t.as_secs_f64())
+}
+
+fn name(ns: &str, base: &str) -> Result<Name> {
+    Name::new(ns, base).map_err(|e| anyhow!("name {ns}/{base}: {e:?}"))
+}
+
+fn dds<E: std::fmt::Debug>(what: &'static str) -> impl FnOnce(E) -> anyhow::Error {
+    move |e| anyhow!("{what}: {e:?}")
 }
 
 fn main() -> Result<()> {
@@ -63,57 +161,102 @@ fn main() -> Result<()> {
         Ok(d) => d.parse().context("ROS_DOMAIN_ID must be a number 0…232")?,
         Err(_) => 0,
     };
-    let context = Context::with_options(ContextOptions::new().domain_id(domain))
-        .map_err(|e| anyhow::anyhow!("DDS: {e:?}"))?;
+    let mapping = match args.service_mapping {
+        Mapping::Enhanced => ServiceMapping::Enhanced,
+        Mapping::Cyclone => ServiceMapping::Cyclone,
+        Mapping::Basic => ServiceMapping::Basic,
+    };
+    let daemon = Rc::new(Daemon::connect(&args.socket)?);
+    let context =
+        Context::with_options(ContextOptions::new().domain_id(domain)).map_err(dds("DDS"))?;
     let mut node = context
         .new_node(
-            NodeName::new("/", "pa10_driver").map_err(|e| anyhow::anyhow!("{e:?}"))?,
+            NodeName::new("/", "pa10_driver").map_err(dds("node name"))?,
             NodeOptions::new(),
         )
-        .map_err(|e| anyhow::anyhow!("node: {e:?}"))?;
-    let executor = smol::Executor::new();
-    executor
-        .spawn(node.spinner().map_err(|e| anyhow::anyhow!("{e:?}"))?.spin())
+        .map_err(dds("node"))?;
+    let ex = Rc::new(LocalExecutor::new());
+    ex.spawn(node.spinner().map_err(dds("spinner"))?.spin())
         .detach();
+    let shared = Rc::new(RefCell::new(Shared::default()));
+    let states = joint_states(&mut node, &args, shared.clone())?;
+    let server = Rc::new(action_server(&mut node, mapping)?);
+    let triggers = triggers(&mut node, mapping, daemon.clone())?;
+    let diag = diagnostics(&mut node, shared.clone())?;
+    let goals = goals(ex.clone(), server.clone(), daemon.clone(), shared.clone());
+    let cancels = cancels(server.clone(), daemon.clone(), shared.clone());
+    let monitor = monitor(ex.clone(), server, shared);
+    eprintln!(
+        "pa10-ros2: domain {domain}, pa10d at {}, service mapping {:?}",
+        args.socket.display(),
+        args.service_mapping
+    );
+    // every part runs until the daemon's connection ends or DDS fails; the first error ends all
+    smol::block_on(
+        ex.run(
+            states
+                .race(triggers)
+                .race(diag)
+                .race(goals)
+                .race(cancels)
+                .race(monitor),
+        ),
+    )
+}
+
+/// `/joint_states` from the daemon's status stream (which also keeps `shared.status` fresh).
+fn joint_states(
+    node: &mut Node,
+    args: &Args,
+    shared: Rc<RefCell<Shared>>,
+) -> Result<impl std::future::Future<Output = Result<()>> + use<>> {
     let qos = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::DEFAULT)
         .durability(Durability::Volatile)
         .history(History::KeepLast { depth: 10 });
     let topic = node
         .create_topic(
-            &Name::new("/", "joint_states").map_err(|e| anyhow::anyhow!("{e:?}"))?,
+            &name("/", "joint_states")?,
             MessageTypeName::new("sensor_msgs", "JointState"),
             &qos,
         )
-        .map_err(|e| anyhow::anyhow!("topic: {e:?}"))?;
+        .map_err(dds("topic"))?;
     let publisher = node
         .create_publisher::<JointState>(&topic, None)
-        .map_err(|e| anyhow::anyhow!("publisher: {e:?}"))?;
+        .map_err(dds("publisher"))?;
     let mut s = UnixStream::connect(&args.socket)
         .with_context(|| format!("connecting to pa10d at {}", args.socket.display()))?;
     s.write_all(format!("{{\"cmd\":\"subscribe\",\"rate_hz\":{}}}\n", args.rate_hz).as_bytes())?;
-    let names: Vec<String> = (1..=6).map(|j| format!("pa10_joint_{j}")).collect();
-    let mut last: Option<(f64, [f64; 6])> = None;
-    smol::block_on(executor.run(async {
-        for line in BufReader::new(s).lines() {
-            let v: serde_json::Value = serde_json::from_str(&line?)?;
+    let stream = Async::new(s)?;
+    Ok(async move {
+        let names: Vec<String> = JOINT_NAMES.iter().map(|s| s.to_string()).collect();
+        let mut last: Option<(f64, [f64; 6])> = None;
+        let mut lines = smol::io::BufReader::new(stream).lines();
+        while let Some(line) = smol::stream::StreamExt::next(&mut lines).await {
+            let v: Value = serde_json::from_str(&line?)?;
             if v["ok"] != true {
                 bail!("pa10d: {}", v["error"]);
             }
-            let st = &v["status"];
-            // the link estimate (resolver minus the modelled deflection)
-            let (Some(q), Some(tau)) = (six(&st["trajectory"]["actual"]), six(&st["tau"])) else {
+            let st = v["status"].clone();
+            let t: Option<TrajectoryReport> = serde_json::from_value(st["trajectory"].clone()).ok();
+            let tau: Option<[f64; 6]> = serde_json::from_value(st["tau"].clone()).ok();
+            let time_s = st["time_s"].as_f64().unwrap_or(0.0);
+            shared.borrow_mut().status = Some(st);
+            let (Some(t), Some(tau)) = (t, tau) else {
                 continue;
             };
-            let t = st["time_s"].as_f64().unwrap_or(0.0);
+            // the link estimate (resolver minus the modelled deflection)
+            let q = t.actual;
             let velocity = match last {
-                Some((t0, q0)) if t > t0 => (0..6).map(|j| (q[j] - q0[j]) / (t - t0)).collect(),
+                Some((t0, q0)) if time_s > t0 => {
+                    (0..6).map(|j| (q[j] - q0[j]) / (time_s - t0)).collect()
+                }
                 _ => vec![0.0; 6],
             };
-            last = Some((t, q));
+            last = Some((time_s, q));
             let msg = JointState {
                 header: Header {
-                    stamp: Time::now(),
+                    stamp: now(),
                     frame_id: String::new(),
                 },
                 name: names.clone(),
@@ -124,8 +267,316 @@ fn main() -> Result<()> {
             publisher
                 .async_publish(msg)
                 .await
-                .map_err(|e| anyhow::anyhow!("publish: {e:?}"))?;
+                .map_err(dds("publish /joint_states"))?;
         }
-        anyhow::Ok(())
-    }))
+        bail!("pa10d closed the status stream")
+    })
+}
+
+fn action_server(node: &mut Node, mapping: ServiceMapping) -> Result<Server> {
+    // as ROS 2's action defaults: services and feedback reliable + volatile, status
+    // transient-local (a late client still learns the goals' states)
+    let service = QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 10 });
+    let status = QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 });
+    let qos = ActionServerQosPolicies {
+        goal_service: service.clone(),
+        result_service: service.clone(),
+        cancel_service: service.clone(),
+        feedback_publisher: service,
+        status_publisher: status,
+    };
+    let s = node
+        .create_action_server::<Goal, FollowJointTrajectoryResult, FollowJointTrajectoryFeedback>(
+            mapping,
+            &name("/pa10_controller", "follow_joint_trajectory")?,
+            &ActionTypeName::new("control_msgs", "FollowJointTrajectory"),
+            qos,
+        )
+        .map_err(dds("action server"))?;
+    Ok(AsyncActionServer::new(s))
+}
+
+/// Sends the result of a goal that ended, once its client asks (at most [`RESULT_WAIT`]).
+fn finish(
+    ex: &LocalExecutor<'static>,
+    server: Rc<Server>,
+    handle: ExecutingGoalHandle<Goal>,
+    ending: Ending,
+    result: FollowJointTrajectoryResult,
+) {
+    let status = match ending {
+        Ending::Succeeded => GoalEndStatus::Succeeded,
+        Ending::Aborted => GoalEndStatus::Aborted,
+        Ending::Canceled => GoalEndStatus::Canceled,
+    };
+    eprintln!(
+        "pa10-ros2: goal {:?} {status:?}: {} {}",
+        handle.goal_id(),
+        result.error_code,
+        result.error_string
+    );
+    let id = handle.goal_id();
+    ex.spawn(async move {
+        let sent = server
+            .send_result_response(handle, status, result)
+            .or(async {
+                Timer::after(RESULT_WAIT).await;
+                Err(ros2_client::action::GoalError::NoSuchGoal)
+            })
+            .await;
+        if let Err(e) = sent {
+            eprintln!("pa10-ros2: the result of goal {id:?} was not delivered: {e:?}");
+        }
+    })
+    .detach();
+}
+
+/// Takes every goal: accepted, translated, handed to the daemon — or ended at once with the
+/// code and the words that refuse it.
+async fn goals(
+    ex: Rc<LocalExecutor<'static>>,
+    server: Rc<Server>,
+    daemon: Rc<Daemon>,
+    shared: Rc<RefCell<Shared>>,
+) -> Result<()> {
+    loop {
+        let new = server.receive_new_goal().await.map_err(dds("goal"))?;
+        let Some(goal) = server.get_new_goal(new.clone()) else {
+            continue;
+        };
+        let accepted = server.accept_goal(new).await.map_err(dds("accept"))?;
+        let handle = server
+            .start_executing_goal(accepted)
+            .await
+            .map_err(dds("execute"))?;
+        let current = shared
+            .borrow()
+            .status
+            .as_ref()
+            .and_then(|s| serde_json::from_value::<[f64; 6]>(s["setpoint"].clone()).ok());
+        let started = match current {
+            None => Err((code::INVALID_GOAL, "no status from pa10d yet".to_string())),
+            Some(current) => match pa10::ros2::goal_request(&goal, now(), &current) {
+                Err(r) => Err((r.code, r.message)),
+                Ok(req) => match daemon.call(&req) {
+                    Ok(v) => v["id"].as_u64().ok_or((
+                        code::INVALID_GOAL,
+                        format!("pa10d answered without an id: {v}"),
+                    )),
+                    Err(e) => Err((code::INVALID_GOAL, e)),
+                },
+            },
+        };
+        match started {
+            Err((error_code, error_string)) => finish(
+                &ex,
+                server.clone(),
+                handle,
+                Ending::Aborted,
+                FollowJointTrajectoryResult {
+                    error_code,
+                    error_string,
+                },
+            ),
+            Ok(id) => {
+                let old = shared.borrow_mut().active.replace(Active {
+                    handle,
+                    id,
+                    canceling: false,
+                });
+                if let Some(old) = old {
+                    finish(
+                        &ex,
+                        server.clone(),
+                        old.handle,
+                        Ending::Canceled,
+                        FollowJointTrajectoryResult {
+                            error_code: code::INVALID_GOAL,
+                            error_string: "replaced by a newer goal".into(),
+                        },
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// A cancel of the running goal stops the arm (its result follows when it has stopped).
+async fn cancels(
+    server: Rc<Server>,
+    daemon: Rc<Daemon>,
+    shared: Rc<RefCell<Shared>>,
+) -> Result<()> {
+    loop {
+        let req = server
+            .receive_cancel_request()
+            .await
+            .map_err(dds("cancel"))?;
+        let target = shared
+            .borrow()
+            .active
+            .as_ref()
+            .map(|a| a.handle.goal_id())
+            .filter(|id| req.contains_goal(id));
+        let canceling = match target {
+            Some(id) => match daemon.call(&json!({"cmd": "stop"})) {
+                Ok(_) => {
+                    if let Some(a) = shared.borrow_mut().active.as_mut() {
+                        a.canceling = true;
+                    }
+                    Some(id)
+                }
+                Err(e) => {
+                    eprintln!("pa10-ros2: cancel: pa10d refused to stop: {e}");
+                    None
+                }
+            },
+            None => None,
+        };
+        server
+            .respond_to_cancel_requests(&req, canceling.into_iter())
+            .await
+            .map_err(dds("cancel response"))?;
+    }
+}
+
+/// Follows the running goal in the daemon's status: feedback while it runs, the result when it
+/// ends.
+async fn monitor(
+    ex: Rc<LocalExecutor<'static>>,
+    server: Rc<Server>,
+    shared: Rc<RefCell<Shared>>,
+) -> Result<()> {
+    loop {
+        Timer::after(MONITOR_PERIOD).await;
+        let (handle, ended, report) = {
+            let mut sh = shared.borrow_mut();
+            let Some(st) = sh.status.clone() else {
+                continue;
+            };
+            let Some(a) = sh.active.as_ref() else {
+                continue;
+            };
+            let Ok(t) = serde_json::from_value::<TrajectoryReport>(st["trajectory"].clone()) else {
+                continue;
+            };
+            if t.id < a.id {
+                continue; // the status stream has not seen it start yet
+            }
+            let ended = if t.id > a.id {
+                Some((
+                    Ending::Canceled,
+                    FollowJointTrajectoryResult {
+                        error_code: code::INVALID_GOAL,
+                        error_string: "replaced by a newer trajectory, move or stream".into(),
+                    },
+                ))
+            } else {
+                pa10::ros2::goal_result(&t, a.canceling, st["fault"].as_str())
+            };
+            let handle = a.handle.clone();
+            if ended.is_some() {
+                sh.active = None;
+            }
+            (handle, ended, t)
+        };
+        match ended {
+            Some((ending, result)) => finish(&ex, server.clone(), handle, ending, result),
+            None => {
+                if let Err(e) = server
+                    .publish_feedback(handle, pa10::ros2::feedback(&report, now()))
+                    .await
+                {
+                    eprintln!("pa10-ros2: feedback: {e:?}");
+                }
+            }
+        }
+    }
+}
+
+/// `/pa10_driver/stop` and `/pa10_driver/reset` (std_srvs/Trigger).
+fn triggers(
+    node: &mut Node,
+    mapping: ServiceMapping,
+    daemon: Rc<Daemon>,
+) -> Result<impl std::future::Future<Output = Result<()>> + use<>> {
+    let qos = QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 10 });
+    let mut make = |base: &str| {
+        node.create_server::<TriggerRequest, TriggerResponse>(
+            mapping,
+            &name("/pa10_driver", base)?,
+            &ServiceTypeName::new("std_srvs", "Trigger"),
+            qos.clone(),
+            qos.clone(),
+        )
+        .map_err(dds("service"))
+    };
+    let (stop, reset) = (make("stop")?, make("reset")?);
+    let serve = move |srv: ros2_client::Server<TriggerRequest, TriggerResponse>,
+                      cmd: &'static str| {
+        let daemon = daemon.clone();
+        async move {
+            loop {
+                let (id, _) = srv.async_receive_request().await.map_err(dds("trigger"))?;
+                let resp = match daemon.call(&json!({ "cmd": cmd })) {
+                    Ok(_) => TriggerResponse {
+                        success: true,
+                        message: format!("pa10d: {cmd} done"),
+                    },
+                    Err(e) => TriggerResponse {
+                        success: false,
+                        message: e,
+                    },
+                };
+                srv.async_send_response(id, resp)
+                    .await
+                    .map_err(dds("trigger response"))?;
+            }
+            #[allow(unreachable_code)]
+            anyhow::Ok(())
+        }
+    };
+    Ok(serve(stop, "stop").race(serve(reset, "reset")))
+}
+
+/// `/diagnostics` once a second from the latest status.
+fn diagnostics(
+    node: &mut Node,
+    shared: Rc<RefCell<Shared>>,
+) -> Result<impl std::future::Future<Output = Result<()>> + use<>> {
+    let qos = QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 10 });
+    let topic = node
+        .create_topic(
+            &name("/", "diagnostics")?,
+            MessageTypeName::new("diagnostic_msgs", "DiagnosticArray"),
+            &qos,
+        )
+        .map_err(dds("topic"))?;
+    let publisher = node
+        .create_publisher::<DiagnosticArray>(&topic, None)
+        .map_err(dds("publisher"))?;
+    Ok(async move {
+        loop {
+            Timer::after(Duration::from_secs(1)).await;
+            let st = shared.borrow().status.clone();
+            if let Some(st) = st {
+                publisher
+                    .async_publish(pa10::ros2::diagnostics(&st, now()))
+                    .await
+                    .map_err(dds("publish /diagnostics"))?;
+            }
+        }
+    })
 }
