@@ -12,6 +12,7 @@
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
+use crate::daemon::api::MAX_LINE_BYTES;
 use crate::daemon::control::Tolerances;
 
 /// The joint names of the arm, J1…J6, as `/joint_states` and the URDF carry them.
@@ -430,9 +431,16 @@ fn reorder(v: &[f64], order: &[usize; 6], what: &str) -> Result<[f64; 6], GoalRe
                 ),
             );
         }
-        out[j] = v[k];
+        out[j] = nano(v[k]);
     }
     Ok(out)
+}
+
+/// `x` to 1e-9 (rad, rad/s, rad/s², s — far below the resolvers' 0.19 mrad): the shortest
+/// decimal of such a number has ≤ 12 digits, where an arbitrary double needs 17, so a request
+/// line carries ≈ 40 % more points.
+fn nano(x: f64) -> f64 {
+    (x * 1e9).round() / 1e9
 }
 
 /// Per-joint position tolerances, rad, in the arm's order: 0 (unspecified) → `default`,
@@ -564,7 +572,7 @@ pub fn goal_request(
             }
             continue;
         }
-        let mut point = json!({ "positions": q, "time_from_start": tp });
+        let mut point = json!({ "positions": q, "time_from_start": nano(tp) });
         if !p.velocities.is_empty() {
             point["velocities"] = json!(reorder(
                 &p.velocities,
@@ -596,13 +604,25 @@ pub fn goal_request(
         Ok(s) => return refuse(code::INVALID_GOAL, format!("goal_time_tolerance {s} s < 0")),
         Err(e) => return refuse(code::INVALID_GOAL, format!("goal_time_tolerance: {e}")),
     };
-    Ok(json!({
+    let n = points.len();
+    let req = json!({
         "cmd": "follow_trajectory",
         "points": points,
         "path_tolerance": path,
         "goal_tolerance": goal_tol,
         "goal_time_tolerance": goal_time,
-    }))
+    });
+    let bytes = req.to_string().len() + 1;
+    if bytes > MAX_LINE_BYTES {
+        return refuse(
+            code::INVALID_GOAL,
+            format!(
+                "{n} points make a {bytes}-byte request; pa10d takes {MAX_LINE_BYTES} bytes a line (about {} points like these): send fewer points",
+                n * MAX_LINE_BYTES / bytes
+            ),
+        );
+    }
+    Ok(req)
 }
 
 /// The daemon's latest trajectory, as `status.trajectory` carries it.
@@ -1050,6 +1070,39 @@ mod tests {
         assert_eq!(diagnostics(&st, NOW).status[0].level, level::WARN);
         let st = json!({"state":"starting","fault":null,"cycle":{},"link":{}});
         assert_eq!(diagnostics(&st, NOW).status[0].level, level::WARN);
+    }
+
+    #[test]
+    fn a_goal_too_long_for_one_request_line_is_refused_by_its_size() {
+        // a MoveIt-like plan: positions, velocities and accelerations on every point
+        let plan = |n: usize| {
+            let mut g = goal(
+                [0, 1, 2, 3, 4, 5],
+                &(1..=n)
+                    .map(|i| {
+                        let s = i as f64 / n as f64;
+                        (
+                            std::array::from_fn(|j| Q0[j] + 0.3 * s + 1e-7 / 3.0),
+                            0.01 * i as f64,
+                        )
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            for p in &mut g.trajectory.points {
+                p.velocities = vec![0.123_456_789_123; 6];
+                p.accelerations = vec![-0.987_654_321_987; 6];
+            }
+            g
+        };
+        let r = goal_request(&plan(200), NOW, &Q0).unwrap();
+        assert!(r.to_string().len() < MAX_LINE_BYTES);
+        // sent to 1e-9
+        assert_eq!(r["points"][0]["velocities"][0], 0.123_456_789);
+        let e = goal_request(&plan(2000), NOW, &Q0).unwrap_err();
+        assert_eq!(e.code, code::INVALID_GOAL);
+        assert!(e.message.contains("2000 points make a"), "{e}");
+        assert!(e.message.contains("send fewer points"), "{e}");
+        eprintln!("{e}");
     }
 
     #[test]

@@ -21,7 +21,7 @@
 use std::cell::RefCell;
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::net::UnixStream;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::rc::Rc;
 use std::time::Duration;
 
@@ -88,33 +88,32 @@ const MONITOR_PERIOD: Duration = Duration::from_millis(50);
 /// How long a finished goal waits for its client's result request.
 const RESULT_WAIT: Duration = Duration::from_secs(60);
 
-/// The request connection to pa10d (one request, one answer line).
+/// Requests to pa10d: a connection per request (goals, cancels and triggers are rare), so
+/// the daemon's idle timeout (300 s) or a broken connection never leaves the bridge with a
+/// dead one.
 struct Daemon {
-    conn: RefCell<(BufReader<UnixStream>, UnixStream)>,
+    path: PathBuf,
 }
 
 impl Daemon {
-    fn connect(path: &Path) -> Result<Self> {
-        let s = UnixStream::connect(path)
-            .with_context(|| format!("connecting to pa10d at {}", path.display()))?;
-        s.set_read_timeout(Some(Duration::from_secs(CALL_TIMEOUT_S)))?;
-        s.set_write_timeout(Some(Duration::from_secs(CALL_TIMEOUT_S)))?;
-        Ok(Self {
-            conn: RefCell::new((BufReader::new(s.try_clone()?), s)),
-        })
-    }
-
     /// The daemon's answer to `req`: Ok with the answer when `ok`, Err with its words.
     fn call(&self, req: &Value) -> Result<Value, String> {
-        let mut c = self.conn.borrow_mut();
+        let io = |e: std::io::Error| format!("pa10d at {}: {e}", self.path.display());
+        let s = UnixStream::connect(&self.path).map_err(io)?;
+        let limit = Some(Duration::from_secs(CALL_TIMEOUT_S));
+        s.set_read_timeout(limit).map_err(io)?;
+        s.set_write_timeout(limit).map_err(io)?;
         let mut line = req.to_string();
         line.push('\n');
-        c.1.write_all(line.as_bytes())
-            .map_err(|e| format!("pa10d: {e}"))?;
+        (&s).write_all(line.as_bytes()).map_err(io)?;
         let mut answer = String::new();
-        c.0.read_line(&mut answer)
-            .map_err(|e| format!("pa10d: {e}"))?;
-        let v: Value = serde_json::from_str(&answer).map_err(|e| format!("pa10d: {e}"))?;
+        BufReader::new(&s).read_line(&mut answer).map_err(io)?;
+        let v: Value = serde_json::from_str(&answer).map_err(|e| {
+            format!(
+                "pa10d answered {} bytes that are not JSON: {e}",
+                answer.len()
+            )
+        })?;
         if v["ok"] == true {
             Ok(v)
         } else {
@@ -166,7 +165,9 @@ fn main() -> Result<()> {
         Mapping::Cyclone => ServiceMapping::Cyclone,
         Mapping::Basic => ServiceMapping::Basic,
     };
-    let daemon = Rc::new(Daemon::connect(&args.socket)?);
+    let daemon = Rc::new(Daemon {
+        path: args.socket.clone(),
+    });
     let context =
         Context::with_options(ContextOptions::new().domain_id(domain)).map_err(dds("DDS"))?;
     let mut node = context
