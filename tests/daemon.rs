@@ -693,7 +693,8 @@ fn ros2_bridge(sock: &Path, domain: &str, mapping: &str) -> Reaped {
 /// a goal in another joint order with its start state at t = 0 succeeds and the arm arrives
 /// (checked on pa10d's socket); unknown joints end INVALID_JOINTS with the name; a goal pa10d
 /// refuses ends INVALID_GOAL with pa10d's words; a cancel stops the arm short of its goal
-/// (CANCELED); `~/stop` answers success; `/diagnostics` names the loop's state.
+/// (CANCELED); a newer goal replaces a running one (CANCELED, then SUCCEEDED); `~/stop`
+/// answers success; `/diagnostics` names the loop's state.
 #[cfg(feature = "ros2")]
 #[test]
 fn ros2_follow_joint_trajectory_through_a_dds_implementation_we_did_not_write() {

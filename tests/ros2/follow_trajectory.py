@@ -224,6 +224,20 @@ def main() -> None:
     # the status topic (transient local) knows the goals' ends
     ends = [s.status for a in status.take(N=10) for s in a.status_list]
     out["goal_statuses"] = ends
+    # 4b. a newer goal replaces the running one: the old one CANCELED ("replaced"), the new one
+    # followed from where the arm was (no jump) to SUCCEEDED
+    first = UUID(uuid=[random.randrange(256) for _ in range(16)])
+    assert send.call(goal_id=first, goal=goal(NAMES, [(target, 6.0)])).accepted
+    time.sleep(0.5)
+    res_b, _ = run(goal(NAMES, [(start, 4.0)]))
+    res_a = result.call(timeout=10.0, goal_id=first)
+    assert res_a.status == CANCELED and res_a.result.error_code == -1, f"replaced goal: {res_a}"
+    assert "replaced" in res_a.result.error_string, res_a.result.error_string
+    assert res_b.status == SUCCEEDED, f"replacing goal: {res_b}"
+    actual = daemon({"cmd": "status"})["status"]["trajectory"]["actual"]
+    worst = max(abs(a - b) for a, b in zip(actual, start))
+    assert worst < 0.005, f"the replacing goal arrived {worst} rad from its target"
+    out["goal_replaced"] = {"old": res_a.result.error_string, "new_worst_error_rad": worst}
     # 5. ~/stop
     r = stop.call(structure_needs_at_least_one_member=0)
     assert r.success, r.message
