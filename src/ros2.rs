@@ -16,14 +16,7 @@ use crate::daemon::api::MAX_LINE_BYTES;
 use crate::daemon::control::Tolerances;
 
 /// The joint names of the arm, J1…J6, as `/joint_states` and the URDF carry them.
-pub const JOINT_NAMES: [&str; 6] = [
-    "pa10_joint_1",
-    "pa10_joint_2",
-    "pa10_joint_3",
-    "pa10_joint_4",
-    "pa10_joint_5",
-    "pa10_joint_6",
-];
+pub use crate::model::urdf::JOINT_NAMES;
 
 /// How far (rad, every joint) a first point at `time_from_start` 0 may be from the arm's
 /// current setpoint to be taken as the start state MoveIt sends (and dropped).

@@ -604,25 +604,34 @@ fn the_python_client_drives_the_daemon_binary() {
         let _serial = serial();
         let dir = temp_dir("python");
         let (_child, sock) = spawn_pa10d(&dir, |t| t);
-        let o = std::process::Command::new("python3")
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/clients/python/tests/against_daemon.py"
-            ))
-            .arg(&sock)
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "{}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
+        let out = python(
+            "clients/python/tests/against_daemon.py",
+            &[sock.to_str().unwrap()],
+            &[],
         );
-        assert!(String::from_utf8_lossy(&o.stdout).contains("all checks passed"));
+        assert!(out.contains("all checks passed"), "{out}");
         std::fs::remove_dir_all(&dir).unwrap();
     } else {
         eprintln!("skipped: set PA10_PYTHON_CLIENT=1 with clients/python installed (CI does)");
     }
+}
+
+/// Runs `python3 SCRIPT ARGS…` (SCRIPT relative to the package) with `env` added; its stdout,
+/// once it exited 0 (else both outputs in the panic).
+fn python(script: &str, args: &[&str], env: &[(&str, &str)]) -> String {
+    let o = std::process::Command::new("python3")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join(script))
+        .args(args)
+        .envs(env.iter().copied())
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(
+        o.status.success(),
+        "{script}: {out}{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    out
 }
 
 /// `pa10-ros2` (feature `ros2`) next to the `pa10d` binary on the simulated arm, read by
@@ -650,22 +659,12 @@ fn ros2_joint_states_reach_a_dds_implementation_we_did_not_write() {
         .iter()
         .map(|x| x.to_string())
         .collect();
-    let o = std::process::Command::new("python3")
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/tests/ros2/check_joint_states.py"
-        ))
-        .arg(q.join(","))
-        .env("ROS_DOMAIN_ID", &domain)
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
+    let out = python(
+        "tests/ros2/check_joint_states.py",
+        &[&q.join(",")],
+        &[("ROS_DOMAIN_ID", &domain)],
     );
-    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let r: Value = serde_json::from_str(&out).unwrap();
     eprintln!("ros2: {r}");
     assert!(r["rate_hz"].as_f64().unwrap() >= 80.0, "{r}");
     std::fs::remove_dir_all(&dir).unwrap();
@@ -704,23 +703,15 @@ fn ros2_follow_joint_trajectory_through_a_dds_implementation_we_did_not_write() 
         let (_daemon, sock) = spawn_pa10d(&dir, |t| t);
         let domain = (10 + 2 * (std::process::id() % 40) + k as u32).to_string();
         let _bridge = ros2_bridge(&sock, &domain, mapping);
-        let o = std::process::Command::new("python3")
-            .arg(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/tests/ros2/follow_trajectory.py"
-            ))
-            .arg(mapping)
-            .env("PA10D_SOCKET", &sock)
-            .env("ROS_DOMAIN_ID", &domain)
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "{mapping}: {}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
+        let out = python(
+            "tests/ros2/follow_trajectory.py",
+            &[mapping],
+            &[
+                ("PA10D_SOCKET", sock.to_str().unwrap()),
+                ("ROS_DOMAIN_ID", &domain),
+            ],
         );
-        let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+        let r: Value = serde_json::from_str(&out).unwrap();
         eprintln!("ros2 {mapping}: {r}");
         assert!(r["goal_succeeded"]["worst_error_rad"].as_f64().unwrap() < 0.005);
         std::fs::remove_dir_all(&dir).unwrap();

@@ -211,20 +211,7 @@ fn joint_states(
     args: &Args,
     shared: Rc<RefCell<Shared>>,
 ) -> Result<impl std::future::Future<Output = Result<()>> + use<>> {
-    let qos = QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth: 10 });
-    let topic = node
-        .create_topic(
-            &name("/", "joint_states")?,
-            MessageTypeName::new("sensor_msgs", "JointState"),
-            &qos,
-        )
-        .map_err(dds("topic"))?;
-    let publisher = node
-        .create_publisher::<JointState>(&topic, None)
-        .map_err(dds("publisher"))?;
+    let publisher = publisher::<JointState>(node, "joint_states", "sensor_msgs", "JointState")?;
     let mut s = UnixStream::connect(&args.socket)
         .with_context(|| format!("connecting to pa10d at {}", args.socket.display()))?;
     s.write_all(format!("{{\"cmd\":\"subscribe\",\"rate_hz\":{}}}\n", args.rate_hz).as_bytes())?;
@@ -274,13 +261,37 @@ fn joint_states(
     })
 }
 
+/// Reliable, volatile, keep-last 10: ROS 2's default for topics and services (and what
+/// drivers use for `/joint_states`).
+fn reliable() -> QosProfile {
+    QosProfile::publisher_default()
+        .reliability_reliable(WhenFull::DEFAULT)
+        .durability(Durability::Volatile)
+        .history(History::KeepLast { depth: 10 })
+}
+
+/// A [`reliable`] publisher of `pkg/msg/ty` on `/topic`.
+fn publisher<T: serde::Serialize>(
+    node: &mut Node,
+    topic: &str,
+    pkg: &str,
+    ty: &str,
+) -> Result<ros2_client::Publisher<T>> {
+    let t = node
+        .create_topic(
+            &name("/", topic)?,
+            MessageTypeName::new(pkg, ty),
+            &reliable(),
+        )
+        .map_err(dds("topic"))?;
+    node.create_publisher::<T>(&t, None)
+        .map_err(dds("publisher"))
+}
+
 fn action_server(node: &mut Node, mapping: ServiceMapping) -> Result<Server> {
     // as ROS 2's action defaults: services and feedback reliable + volatile, status
     // transient-local (a late client still learns the goals' states)
-    let service = QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth: 10 });
+    let service = reliable();
     let status = QosProfile::publisher_default()
         .reliability_reliable(WhenFull::DEFAULT)
         .durability(Durability::TransientLocal)
@@ -507,10 +518,7 @@ fn triggers(
     mapping: ServiceMapping,
     daemon: Rc<Daemon>,
 ) -> Result<impl std::future::Future<Output = Result<()>> + use<>> {
-    let qos = QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth: 10 });
+    let qos = reliable();
     let mut make = |base: &str| {
         node.create_server::<TriggerRequest, TriggerResponse>(
             mapping,
@@ -554,20 +562,8 @@ fn diagnostics(
     node: &mut Node,
     shared: Rc<RefCell<Shared>>,
 ) -> Result<impl std::future::Future<Output = Result<()>> + use<>> {
-    let qos = QosProfile::publisher_default()
-        .reliability_reliable(WhenFull::DEFAULT)
-        .durability(Durability::Volatile)
-        .history(History::KeepLast { depth: 10 });
-    let topic = node
-        .create_topic(
-            &name("/", "diagnostics")?,
-            MessageTypeName::new("diagnostic_msgs", "DiagnosticArray"),
-            &qos,
-        )
-        .map_err(dds("topic"))?;
-    let publisher = node
-        .create_publisher::<DiagnosticArray>(&topic, None)
-        .map_err(dds("publisher"))?;
+    let publisher =
+        publisher::<DiagnosticArray>(node, "diagnostics", "diagnostic_msgs", "DiagnosticArray")?;
     Ok(async move {
         loop {
             Timer::after(Duration::from_secs(1)).await;
