@@ -151,6 +151,33 @@ fn dds<E: std::fmt::Debug>(what: &'static str) -> impl FnOnce(E) -> anyhow::Erro
     move |e| anyhow!("{what}: {e:?}")
 }
 
+/// Counts the failed requests of one kind (a malformed goal from a DDS client, a reply DDS
+/// could not send) and says so on stderr at the 1st, 2nd, 4th, 8th… of them: a client cannot
+/// stop the bridge, nor flood its log.
+#[derive(Default)]
+struct Failures(std::cell::Cell<u64>);
+
+impl Failures {
+    /// `r`'s value, or None after counting (and perhaps logging) its error.
+    fn check<T, E: std::fmt::Debug>(&self, what: &str, r: Result<T, E>) -> Option<T> {
+        match r {
+            Ok(v) => Some(v),
+            Err(e) => {
+                let n = self.0.get() + 1;
+                self.0.set(n);
+                if n.is_power_of_two() {
+                    eprintln!("pa10-ros2: {what}: {e:?} ({n} so far)");
+                }
+                None
+            }
+        }
+    }
+}
+
+/// After a failed receive, a pause before the next (a reader that fails at once every time
+/// must not spin).
+const AFTER_FAILURE: Duration = Duration::from_millis(10);
+
 fn main() -> Result<()> {
     let args = Args::parse();
     if !(1.0..=100.0).contains(&args.rate_hz) {
@@ -357,16 +384,24 @@ async fn goals(
     daemon: Rc<Daemon>,
     shared: Rc<RefCell<Shared>>,
 ) -> Result<()> {
+    let failed = Failures::default();
     loop {
-        let new = server.receive_new_goal().await.map_err(dds("goal"))?;
+        let Some(new) = failed.check("goal", server.receive_new_goal().await) else {
+            Timer::after(AFTER_FAILURE).await;
+            continue;
+        };
         let Some(goal) = server.get_new_goal(new.clone()) else {
             continue;
         };
-        let accepted = server.accept_goal(new).await.map_err(dds("accept"))?;
-        let handle = server
-            .start_executing_goal(accepted)
-            .await
-            .map_err(dds("execute"))?;
+        let Some(accepted) = failed.check("accepting a goal", server.accept_goal(new).await) else {
+            continue;
+        };
+        let Some(handle) = failed.check(
+            "executing a goal",
+            server.start_executing_goal(accepted).await,
+        ) else {
+            continue;
+        };
         let current = shared
             .borrow()
             .status
@@ -425,11 +460,12 @@ async fn cancels(
     daemon: Rc<Daemon>,
     shared: Rc<RefCell<Shared>>,
 ) -> Result<()> {
+    let failed = Failures::default();
     loop {
-        let req = server
-            .receive_cancel_request()
-            .await
-            .map_err(dds("cancel"))?;
+        let Some(req) = failed.check("cancel", server.receive_cancel_request().await) else {
+            Timer::after(AFTER_FAILURE).await;
+            continue;
+        };
         let target = shared
             .borrow()
             .active
@@ -451,10 +487,12 @@ async fn cancels(
             },
             None => None,
         };
-        server
-            .respond_to_cancel_requests(&req, canceling.into_iter())
-            .await
-            .map_err(dds("cancel response"))?;
+        failed.check(
+            "cancel response",
+            server
+                .respond_to_cancel_requests(&req, canceling.into_iter())
+                .await,
+        );
     }
 }
 
@@ -534,8 +572,12 @@ fn triggers(
                       cmd: &'static str| {
         let daemon = daemon.clone();
         async move {
+            let failed = Failures::default();
             loop {
-                let (id, _) = srv.async_receive_request().await.map_err(dds("trigger"))?;
+                let Some((id, _)) = failed.check(cmd, srv.async_receive_request().await) else {
+                    Timer::after(AFTER_FAILURE).await;
+                    continue;
+                };
                 let resp = match daemon.call(&json!({ "cmd": cmd })) {
                     Ok(_) => TriggerResponse {
                         success: true,
@@ -546,12 +588,8 @@ fn triggers(
                         message: e,
                     },
                 };
-                srv.async_send_response(id, resp)
-                    .await
-                    .map_err(dds("trigger response"))?;
+                failed.check("trigger response", srv.async_send_response(id, resp).await);
             }
-            #[allow(unreachable_code)]
-            anyhow::Ok(())
         }
     };
     Ok(serve(stop, "stop").race(serve(reset, "reset")))

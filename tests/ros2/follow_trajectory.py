@@ -185,6 +185,20 @@ def main() -> None:
         fb = [m for m in feedback.take(N=1000) if list(m.goal_id.uuid) == list(gid.uuid)]
         return res, fb
 
+    # 0. hostile input is ordinary input: a goal request that is not one (the request type's
+    # name, a UUID and nothing else) from another participant must not stop the bridge
+    dp2 = DomainParticipant(int(os.environ.get("ROS_DOMAIN_ID", "0")))
+    pre = [("client_guid", array[uint8, 8]), ("seq_high", int32), ("seq_low", uint32)] if header else []
+    Bad = struct("Bad", "control_msgs::action::dds_::FollowJointTrajectory_SendGoal_Request_", pre + [("goal_id", UUID)])
+    bad_w = DataWriter(dp2, Topic(dp2, f"rq/{ACTION}/send_goalRequest", Bad), qos=RELIABLE)
+    end = time.time() + 10
+    while not bad_w.get_matched_subscriptions() and time.time() < end:
+        time.sleep(0.05)
+    extra = dict(client_guid=[0] * 8, seq_high=0, seq_low=1) if header else {}
+    for _ in range(3):
+        bad_w.write(Bad(**extra, goal_id=UUID(uuid=[7] * 16)))
+    time.sleep(0.5)
+
     st = daemon({"cmd": "status"})["status"]
     start = st["setpoint"]
     target = [q + d for q, d in zip(start, [0.10, -0.08, 0.12, 0.10, -0.10, 0.15])]
