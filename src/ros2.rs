@@ -14,6 +14,7 @@ use serde_json::{Value, json};
 
 use crate::daemon::api::MAX_LINE_BYTES;
 use crate::daemon::control::Tolerances;
+use crate::daemon::trajectory::MAX_POINTS;
 
 /// The joint names of the arm, J1…J6, as `/joint_states` and the URDF carry them.
 pub use crate::model::urdf::JOINT_NAMES;
@@ -505,6 +506,16 @@ pub fn goal_request(
     let order = joint_order(&t.joint_names)?;
     if t.points.is_empty() {
         return refuse(code::INVALID_GOAL, "the trajectory has no points");
+    }
+    if t.points.len() > MAX_POINTS {
+        // judged before any point is translated: a million points cost nothing but this
+        return refuse(
+            code::INVALID_GOAL,
+            format!(
+                "{} points: pa10d follows at most {MAX_POINTS}",
+                t.points.len()
+            ),
+        );
     }
     let times = t
         .points
@@ -1091,6 +1102,13 @@ mod tests {
         assert!(r.to_string().len() < MAX_LINE_BYTES);
         // sent to 1e-9
         assert_eq!(r["points"][0]["velocities"][0], 0.123_456_789);
+        let e = goal_request(&plan(MAX_POINTS + 1), NOW, &Q0).unwrap_err();
+        assert_eq!(e.code, code::INVALID_GOAL);
+        assert!(
+            e.message
+                .contains("2001 points: pa10d follows at most 2000"),
+            "{e}"
+        );
         let e = goal_request(&plan(2000), NOW, &Q0).unwrap_err();
         assert_eq!(e.code, code::INVALID_GOAL);
         assert!(e.message.contains("2000 points make a"), "{e}");
