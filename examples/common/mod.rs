@@ -143,3 +143,71 @@ pub fn back_and_forth(core: &pa10::daemon::runtime::SharedCore, secs: f64) -> us
     }
     k
 }
+
+/// Above this p99 of its own wake-up lateness the host is not fit for a 500 Hz loop, ms.
+#[allow(dead_code)]
+pub const HOST_UNFIT_P99_MS: f64 = 1.0;
+/// A single stall of the host longer than this can cost the loop its feedback window, ms.
+#[allow(dead_code)]
+pub const HOST_UNFIT_MAX_MS: f64 = 20.0;
+
+/// The host's own stalls while a run goes on: a thread at SCHED_FIFO 90 (above the control
+/// thread's 80 and the simulated controller's 81) that sleeps 1 ms at a time and records how
+/// late it wakes. No thread of the daemon can delay it; what delays it is the host (the VM's
+/// vCPUs paused, the kernel busy writing back a build). A fault in a run where the host itself
+/// was unfit is the host's, not the daemon's: the `--check` gates judge a fault only on a host
+/// that was fit ([`HostStalls::unfit`]).
+#[allow(dead_code)]
+pub struct HostWatch {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: std::thread::JoinHandle<[f64; 3]>,
+}
+
+/// What a [`HostWatch`] saw: its wake-up lateness p50 / p99 / max, µs.
+#[allow(dead_code)]
+#[derive(Clone, Copy, Debug)]
+pub struct HostStalls(pub [f64; 3]);
+
+#[allow(dead_code)]
+impl HostWatch {
+    /// Starts watching (SCHED_FIFO 90 when `fifo`).
+    pub fn start(fifo: bool) -> Self {
+        use std::sync::atomic::Ordering;
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let s = stop.clone();
+        let thread = std::thread::spawn(move || {
+            if fifo {
+                let _ = pa10::daemon::realtime::set_fifo(90);
+            }
+            let mut h = pa10::daemon::stats::Histogram::default();
+            let period = std::time::Duration::from_millis(1);
+            while !s.load(Ordering::Relaxed) {
+                let due = std::time::Instant::now() + period;
+                std::thread::sleep(period);
+                h.record(due.elapsed().as_secs_f64() * 1e6);
+            }
+            h.summary()
+        });
+        Self { stop, thread }
+    }
+
+    /// Stops watching.
+    pub fn finish(self) -> HostStalls {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        HostStalls(self.thread.join().unwrap_or([f64::INFINITY; 3]))
+    }
+}
+
+#[allow(dead_code)]
+impl HostStalls {
+    /// Whether the host itself was unfit for the loop (its p99 lateness above
+    /// [`HOST_UNFIT_P99_MS`] or one stall above [`HOST_UNFIT_MAX_MS`]).
+    pub fn unfit(&self) -> bool {
+        self.0[1] > HOST_UNFIT_P99_MS * 1e3 || self.0[2] > HOST_UNFIT_MAX_MS * 1e3
+    }
+
+    /// `p99 / max` in µs, for a table.
+    pub fn cell(&self) -> String {
+        format!("{:.0} / {:.0}", self.0[1], self.0[2])
+    }
+}
