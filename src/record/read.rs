@@ -212,18 +212,18 @@ pub struct StillPhase {
     pub setpoint: [f64; 6],
 }
 
-/// The still phases of `samples`: at least `min_s` of holding (complete feedback, the same
-/// setpoint, every speed command below `speed_tol` rad/s); the first `settle_s` of each
-/// are skipped (the arm settling) and the rest averaged.
+/// The still phases of `samples`: at least `min_s` of holding (the same setpoint, every speed
+/// command below `speed_tol` rad/s); the first `settle_s` of each are skipped (the arm
+/// settling) and the cycles with complete feedback among the rest averaged. A cycle whose
+/// feedback was incomplete (a frame late on a loaded host) is left out of the mean but does
+/// not end the phase: the arm did not move.
 pub fn still_phases(
     samples: &[CycleSample],
     min_s: f64,
     settle_s: f64,
     speed_tol: f64,
 ) -> Vec<StillPhase> {
-    let still = |s: &CycleSample| {
-        s.activity == 0 && s.feedback && s.speeds.iter().all(|v| v.abs() < speed_tol)
-    };
+    let still = |s: &CycleSample| s.activity == 0 && s.speeds.iter().all(|v| v.abs() < speed_tol);
     let mut out = Vec::new();
     let mut i = 0;
     while i < samples.len() {
@@ -244,7 +244,10 @@ pub fn still_phases(
         if t1 - t0 < min_s {
             continue;
         }
-        let kept: Vec<&CycleSample> = run.iter().filter(|s| s.stamp_s >= t0 + settle_s).collect();
+        let kept: Vec<&CycleSample> = run
+            .iter()
+            .filter(|s| s.feedback && s.stamp_s >= t0 + settle_s)
+            .collect();
         if kept.is_empty() {
             continue;
         }
@@ -261,4 +264,52 @@ pub fn still_phases(
         });
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A recording at 500 Hz: 1 s holding at `a`, with every 40th cycle's feedback
+    /// incomplete (a stale resolver reading of 9 rad), then 0.5 s moving, then 1 s at `b`.
+    fn recording() -> Vec<CycleSample> {
+        let (a, b) = ([0.1; 6], [0.2; 6]);
+        (0..1250)
+            .map(|i| {
+                let (activity, setpoint, speed) = match i {
+                    0..500 => (0, a, 0.0),
+                    500..750 => (1, a, 0.1),
+                    _ => (0, b, 0.0),
+                };
+                let feedback = i % 40 != 7;
+                CycleSample {
+                    stamp_s: i as f64 * 0.002,
+                    cycle: i,
+                    activity,
+                    feedback,
+                    q_motor: if feedback { setpoint } else { [9.0; 6] },
+                    setpoint,
+                    speeds: [speed; 6],
+                    ..Default::default()
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn an_incomplete_cycle_is_left_out_of_a_still_phase_but_does_not_end_it() {
+        let phases = still_phases(&recording(), 0.5, 0.1, 0.01);
+        assert_eq!(phases.len(), 2, "{phases:?}");
+        assert_eq!(phases[0].setpoint, [0.1; 6]);
+        assert_eq!(phases[1].setpoint, [0.2; 6]);
+        for p in &phases {
+            // the stale readings are not in the means
+            assert!(
+                (0..6).all(|j| (p.q_motor[j] - p.setpoint[j]).abs() < 1e-12),
+                "{p:?}"
+            );
+            // 1 s less the 0.1 s settling, less one cycle in 40
+            assert!(p.cycles > 420 && p.cycles < 450, "{p:?}");
+        }
+    }
 }
