@@ -221,7 +221,7 @@ pub(crate) fn fit_balanced(
     p: &mut Problem,
     state: &EffectState,
     slots: &[Slot],
-    prior: &[f64],
+    prior: &Prior,
 ) -> Result<Fitted, ModelError> {
     let mut st = state.clone();
     p.dispersion = (1.0, 1.0);
@@ -242,20 +242,16 @@ pub(crate) fn cost_at(
     p: &Problem,
     state: &EffectState,
     slots: &[Slot],
-    prior: &[f64],
+    prior: &Prior,
 ) -> Result<f64, ModelError> {
     let raw = p.raw(state)?;
     let mut white = vec![0.0; p.n_white];
     p.whiten(&raw, &mut white);
-    let u = slots
-        .iter()
-        .zip(prior)
-        .map(|(s, w)| w * (state.get(*s) / s.scale()).powi(2));
     Ok(p.white_rows(|b| b.train)
         .iter()
         .map(|&i| white[i].powi(2))
         .sum::<f64>()
-        + u.sum::<f64>())
+        + prior.cost(slots, state))
 }
 
 /// Residuals and scaled Jacobian at a state.
@@ -412,19 +408,175 @@ pub(crate) struct Fitted {
 /// parameters (not the model's own) at zero in directions the data barely see.
 pub(crate) const EFFECT_PRIOR: f64 = 10.0;
 
-/// Prior precision (normalised units) of each slot: zero for the model's own slots (`own`),
-/// `1/EFFECT_PRIOR²` for effect slots.
-pub(crate) fn prior(slots: &[Slot], own: &[Slot]) -> Vec<f64> {
-    slots
-        .iter()
-        .map(|s| {
-            if own.contains(s) {
-                0.0
-            } else {
-                1.0 / (EFFECT_PRIOR * EFFECT_PRIOR)
+/// Standard error (in units of a slot's scale: 0.1 mm, 0.1 mrad) above which a combination
+/// of the model's own parameters counts as not determined by the data, and is held.
+pub(crate) const HELD_SE: f64 = 2.0;
+
+/// Largest LM step, in units of the slots' scales (a step beyond it is shortened).
+const MAX_STEP: f64 = 200.0;
+
+/// The combinations of the model's own parameters that the data cannot determine (the
+/// eigen-directions of their whitened normal matrix at the start with a standard error
+/// above [`HELD_SE`]), held at their start values by a stiff prior: every refit of
+/// discovery handles identifiability the way `pa10 calibrate` does, and cannot run along
+/// them (from a missing effect, a linearised jump or an LM step would otherwise carry
+/// e.g. `da5 − da6` to a quarter of a metre).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Held {
+    /// The model's own slots the directions are over.
+    pub slots: Vec<Slot>,
+    /// Their start values, normalised (value / scale).
+    pub centre: Vec<f64>,
+    /// Unit directions over `slots`.
+    pub dirs: Vec<DVector<f64>>,
+    /// Standard error of each direction at the start, scale units.
+    pub std_error: Vec<f64>,
+    /// Precision of the hold (the largest eigenvalue of the normal matrix: as stiff as the
+    /// best-determined direction), normalised units.
+    pub precision: f64,
+}
+
+impl Held {
+    /// The held directions of `own` at `state`, from the whitened Jacobian of `p` with
+    /// unit dispersion.
+    pub fn at(p: &Problem, state: &EffectState, own: &[Slot]) -> Result<Self, ModelError> {
+        let mut plain = p.clone();
+        plain.dispersion = (1.0, 1.0);
+        let lin = linearise(&plain, state, own)?;
+        let rows = plain.white_rows(|b| b.train);
+        let cols: Vec<usize> = (0..own.len()).collect();
+        let (a, _) = normal_eq(&lin, &rows, &cols);
+        let e = SymmetricEigen::new(a);
+        let emax = e.eigenvalues.iter().cloned().fold(0.0, f64::max);
+        let cut = 1.0 / (HELD_SE * HELD_SE);
+        let mut dirs = Vec::new();
+        let mut std_error = Vec::new();
+        for (i, &ev) in e.eigenvalues.iter().enumerate() {
+            if ev < cut {
+                dirs.push(e.eigenvectors.column(i).into_owned());
+                std_error.push(if ev > 0.0 {
+                    ev.sqrt().recip()
+                } else {
+                    f64::INFINITY
+                });
             }
+        }
+        Ok(Self {
+            slots: own.to_vec(),
+            centre: own.iter().map(|s| state.get(*s) / s.scale()).collect(),
+            dirs,
+            std_error,
+            precision: emax.max(1.0),
         })
-        .collect()
+    }
+
+    /// The held slots' names and weights of direction `k` (weights ≥ 0.2 in size).
+    pub fn describe(&self, k: usize) -> Vec<(Slot, f64)> {
+        let v = &self.dirs[k];
+        let mut out: Vec<(Slot, f64)> = self
+            .slots
+            .iter()
+            .zip(v.iter())
+            .filter(|(_, w)| w.abs() >= 0.2)
+            .map(|(s, w)| (*s, *w))
+            .collect();
+        out.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+        out
+    }
+}
+
+/// The prior of a discovery fit: a weak one at zero on effect slots, and the [`Held`]
+/// directions of the model's own slots at their start values.
+#[derive(Debug, Clone)]
+pub(crate) struct Prior {
+    /// Precision per slot (normalised units) of the prior at zero.
+    pub diag: Vec<f64>,
+    /// The held directions.
+    pub held: std::sync::Arc<Held>,
+}
+
+impl Prior {
+    /// Zero for the model's own slots (`own`), `1/EFFECT_PRIOR²` for effect slots, and the
+    /// held directions.
+    pub fn new(slots: &[Slot], own: &[Slot], held: &std::sync::Arc<Held>) -> Self {
+        Self {
+            diag: slots
+                .iter()
+                .map(|s| {
+                    if own.contains(s) {
+                        0.0
+                    } else {
+                        1.0 / (EFFECT_PRIOR * EFFECT_PRIOR)
+                    }
+                })
+                .collect(),
+            held: held.clone(),
+        }
+    }
+
+    /// Each held direction embedded in the columns `slots` (zero where a held slot is not
+    /// among them), and its residual `wᵀ(u − u₀)` at `state`.
+    fn held_rows(&self, slots: &[Slot], state: &EffectState) -> Vec<(DVector<f64>, f64)> {
+        let h = &*self.held;
+        let pos: Vec<Option<usize>> = h
+            .slots
+            .iter()
+            .map(|s| slots.iter().position(|x| x == s))
+            .collect();
+        h.dirs
+            .iter()
+            .map(|w| {
+                let mut e = DVector::zeros(slots.len());
+                let mut r = 0.0;
+                for (k, s) in h.slots.iter().enumerate() {
+                    r += w[k] * (state.get(*s) / s.scale() - h.centre[k]);
+                    if let Some(c) = pos[k] {
+                        e[c] = w[k];
+                    }
+                }
+                (e, r)
+            })
+            .collect()
+    }
+
+    /// The prior's cost at `state` over `slots`.
+    pub fn cost(&self, slots: &[Slot], state: &EffectState) -> f64 {
+        let diag: f64 = slots
+            .iter()
+            .zip(&self.diag)
+            .map(|(s, w)| w * (state.get(*s) / s.scale()).powi(2))
+            .sum();
+        let held: f64 = self
+            .held_rows(slots, state)
+            .iter()
+            .map(|(_, r)| r * r)
+            .sum();
+        diag + self.held.precision * held
+    }
+
+    /// Adds the prior to normal equations `a`, `g` over `slots` at `state` (`diag`: whether
+    /// the effects' prior at zero is added too, or only the held directions).
+    pub fn add_to(
+        &self,
+        slots: &[Slot],
+        state: &EffectState,
+        a: &mut DMatrix<f64>,
+        g: &mut DVector<f64>,
+        diag: bool,
+    ) {
+        if diag {
+            for (k, s) in slots.iter().enumerate() {
+                let w = self.diag.get(k).copied().unwrap_or(0.0);
+                a[(k, k)] += w;
+                g[k] += w * state.get(*s) / s.scale();
+            }
+        }
+        let pi = self.held.precision;
+        for (e, r) in self.held_rows(slots, state) {
+            *a += &e * e.transpose() * pi;
+            *g += &e * (pi * r);
+        }
+    }
 }
 
 /// Levenberg–Marquardt on the training blocks over `slots`, from `state`, with prior
@@ -433,53 +585,46 @@ pub(crate) fn fit(
     p: &Problem,
     state: &EffectState,
     slots: &[Slot],
-    prior: &[f64],
+    prior: &Prior,
 ) -> Result<Fitted, ModelError> {
     let rows = p.white_rows(|b| b.train);
     let cols: Vec<usize> = (0..slots.len()).collect();
-    let norm =
-        |st: &EffectState| -> Vec<f64> { slots.iter().map(|s| st.get(*s) / s.scale()).collect() };
-    let prior_cost = |u: &[f64]| u.iter().zip(prior).map(|(u, w)| w * u * u).sum::<f64>();
     let cost_of =
         |lin_white: &DVector<f64>| rows.iter().map(|&i| lin_white[i].powi(2)).sum::<f64>();
-    let with_prior = |a: &mut DMatrix<f64>, g: &mut DVector<f64>, u: &[f64]| {
-        for k in 0..u.len() {
-            a[(k, k)] += prior[k];
-            g[k] += prior[k] * u[k];
-        }
-    };
     let mut st = state.clone();
     let mut lin = linearise(p, &st, slots)?;
-    let mut u = norm(&st);
-    let mut cost = cost_of(&lin.white) + prior_cost(&u);
+    let mut cost = cost_of(&lin.white) + prior.cost(slots, &st);
     let (mut a, mut g) = normal_eq(&lin, &rows, &cols);
-    with_prior(&mut a, &mut g, &u);
+    prior.add_to(slots, &st, &mut a, &mut g, true);
     let mut lambda = 1e-6 * (0..a.nrows()).map(|i| a[(i, i)]).fold(0.0, f64::max);
     let mut white = DVector::zeros(p.n_white);
     for _ in 0..40 {
-        let (d, _) = damped_solve(&a, &g, lambda);
+        let (mut d, _) = damped_solve(&a, &g, lambda);
+        // Bounded steps: no single step moves the parameters further than MAX_STEP scales.
+        let dn = d.norm();
+        if dn > MAX_STEP {
+            d *= MAX_STEP / dn;
+        }
         let mut trial = st.clone();
         for (k, &s) in slots.iter().enumerate() {
             trial.set(s, st.get(s) + d[k] * s.scale());
         }
         // A step that leaves the valid model space (e.g. a departure beyond its bound)
         // counts as an increase.
-        let ut = norm(&trial);
         let c = match p.raw(&trial) {
             Ok(raw) => {
                 p.whiten(&raw, white.as_mut_slice());
-                cost_of(&white) + prior_cost(&ut)
+                cost_of(&white) + prior.cost(slots, &trial)
             }
             Err(_) => f64::INFINITY,
         };
         if c < cost {
             let gain = cost - c;
             st = trial;
-            u = ut;
             cost = c;
             lin = linearise(p, &st, slots)?;
             (a, g) = normal_eq(&lin, &rows, &cols);
-            with_prior(&mut a, &mut g, &u);
+            prior.add_to(slots, &st, &mut a, &mut g, true);
             lambda = (lambda / 10.0).max(1e-15);
             if gain < 1e-9 * cost.max(1.0) || d.norm() < 1e-9 {
                 break;

@@ -217,9 +217,13 @@ pub fn discover(
     let base_slots = slots.clone();
     // Fit, re-estimate the noise model at the fit (it depends on the springs), fit again.
     let (mut p0, _) = problem(&lay, &state0, slots.len())?;
-    let first = fit::fit_balanced(&mut p0, &state0, &slots, &fit::prior(&slots, &slots))?;
+    // The combinations of the model's own parameters these data cannot determine are held
+    // at their start values in every fit below (see `fit::Held`).
+    let held = std::sync::Arc::new(fit::Held::at(&p0, &state0, &slots)?);
+    let prior_of = |slots: &[Slot]| fit::Prior::new(slots, &base_slots, &held);
+    let first = fit::fit_balanced(&mut p0, &state0, &slots, &prior_of(&slots))?;
     let (mut prob, mut noise) = problem(&lay, &first.state, slots.len())?;
-    let mut cur = fit::fit_balanced(&mut prob, &first.state, &slots, &fit::prior(&slots, &slots))?;
+    let mut cur = fit::fit_balanced(&mut prob, &first.state, &slots, &prior_of(&slots))?;
     let noise0 = noise.clone();
     let (lof0, mut a_fit) = plain_lack_of_fit(&prob, &cur.state, &slots)?;
     let significant = lof0.p_value < opts.alpha;
@@ -232,7 +236,11 @@ pub fn discover(
         lof.p_value < opts.alpha || noise.model.repeatable_p < opts.alpha
     };
     let base_cols: Vec<usize> = (0..slots.len()).collect();
-    let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
+    let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout).with_prior(
+        &prior_of(&slots),
+        &slots,
+        &cur.state,
+    );
     let (_, gap0) = heldout(&prob, &cur.lin, &eqs, &lay.folds, &base_cols);
     let train0 = train_rms_mm(&prob, &cur.lin.raw);
     let raw_before = cur.lin.raw.clone();
@@ -277,7 +285,9 @@ pub fn discover(
             all.extend(s);
         }
         let lin = fit::linearise(&prob, &cur.state, &all)?;
-        let eqs = fold_eqs(&prob, &lin, &lay.folds, lay.holdout);
+        let prior_all = prior_of(&all);
+        let eqs =
+            fold_eqs(&prob, &lin, &lay.folds, lay.holdout).with_prior(&prior_all, &all, &cur.state);
         let nb = slots.len();
         let a = &eqs.a_train;
         let g = &eqs.g_train;
@@ -380,7 +390,21 @@ pub fn discover(
                         .collect()
                 });
                 let mut rng = Pcg64::seed_from_u64(opts.seed ^ 0xb007 ^ steps.len() as u64);
-                let st = stability(blocks, nb, &ranges, *ci, dispersion, ln_n, &mut rng);
+                let (mut pa_, mut pg_) = (
+                    DMatrix::zeros(all.len(), all.len()),
+                    DVector::zeros(all.len()),
+                );
+                prior_all.add_to(&all, &cur.state, &mut pa_, &mut pg_, false);
+                let st = stability(
+                    blocks,
+                    (&pa_, &pg_),
+                    nb,
+                    &ranges,
+                    *ci,
+                    dispersion,
+                    ln_n,
+                    &mut rng,
+                );
                 s.stability = Some(st);
                 if st >= STABLE {
                     s.passed = true;
@@ -432,90 +456,129 @@ pub fn discover(
             break;
         };
         let e = cands[ci];
-        // Start the new parameters at their linearised estimate.
-        let cols: Vec<usize> = (0..nb).chain(ranges[ci].clone()).collect();
-        let sub = DMatrix::from_fn(cols.len(), cols.len(), |i, j| a[(cols[i], cols[j])]);
-        let subg = DVector::from_fn(cols.len(), |i, _| g[cols[i]]);
-        let (d, _) = fit::damped_solve(&sub, &subg, 0.0);
-        let mut st = cur.state.clone();
-        for (c, &col) in cols.iter().enumerate() {
-            st.set(all[col], cur.state.get(all[col]) + d[c] * all[col].scale());
-        }
-        let before = (
-            prob.clone(),
-            noise.clone(),
-            cur.clone(),
-            slots.clone(),
-            lof,
-            a_fit.clone(),
-        );
-        slots.extend(e.slots());
-        let pr = fit::prior(&slots, &base_slots);
-        let mut pa = prob.clone();
-        let mut refit = fit::fit_balanced(&mut pa, &st, &slots, &pr)?;
-        // A missing effect can drag the geometry far from nominal while the model tries to
-        // absorb it; refit also from the starting geometry with the effects' estimates, and
-        // from the current fit with the effect at zero (never worse than the current fit),
-        // and keep the best optimum on the first refit's weights.
-        let mut st2 = state0.clone();
-        for &sl in slots.iter().filter(|s| !base_slots.contains(s)) {
-            st2.set(sl, refit.state.get(sl));
-        }
-        for start in [st2, cur.state.clone()] {
-            let mut pb = prob.clone();
-            let alt = fit::fit_balanced(&mut pb, &start, &slots, &pr)?;
-            let alt_cost = fit::cost_at(&pa, &alt.state, &slots, &pr)?;
-            if alt_cost < refit.cost {
-                refit = fit::Fitted {
-                    cost: alt_cost,
-                    ..alt
-                };
+        let mut new_slots = slots.clone();
+        new_slots.extend(e.slots());
+        let pr = prior_of(&new_slots);
+        // The refit, from three starts; any failure (a start outside the model's valid
+        // range, a fit that cannot proceed) rejects this candidate, never the run.
+        let attempt = || -> Result<_, DiscoverError> {
+            // Start the new parameters at their linearised estimate (on the prior, so the
+            // jump cannot run along the held directions).
+            let cols: Vec<usize> = (0..nb).chain(ranges[ci].clone()).collect();
+            let sub = DMatrix::from_fn(cols.len(), cols.len(), |i, j| a[(cols[i], cols[j])]);
+            let subg = DVector::from_fn(cols.len(), |i, _| g[cols[i]]);
+            let (d, _) = fit::damped_solve(&sub, &subg, 0.0);
+            let mut jump = cur.state.clone();
+            for (c, &col) in cols.iter().enumerate() {
+                jump.set(all[col], cur.state.get(all[col]) + d[c] * all[col].scale());
             }
-        }
-        (prob, noise) = problem(&lay, &refit.state, slots.len())?;
-        cur = fit::fit_balanced(&mut prob, &refit.state, &slots, &pr)?;
-        (lof, a_fit) = plain_lack_of_fit(&prob, &cur.state, &slots)?;
-        // The refitted model must predict held-out configurations better than the model
-        // before it, on the same weights: positive and significant (paired over held-out
-        // configurations), whatever the linearised scores said.
-        let all_cols = |n: usize| (0..n).collect::<Vec<_>>();
-        let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
-        let (costs_new, g2) = heldout(&prob, &cur.lin, &eqs, &lay.folds, &all_cols(slots.len()));
-        let lin_prev = fit::linearise(&prob, &before.2.state, &before.3)?;
-        let eqs_prev = fold_eqs(&prob, &lin_prev, &lay.folds, lay.holdout);
-        let (costs_prev, g_prev) = heldout(
-            &prob,
-            &lin_prev,
-            &eqs_prev,
-            &lay.folds,
-            &all_cols(before.3.len()),
-        );
-        let d: Vec<f64> = costs_prev
-            .iter()
-            .zip(&costs_new)
-            .map(|(a, b)| a - b)
-            .collect();
-        let test = Paired::new(&d, opts.alpha);
-        // The statistic is the whitened held-out cost; the RMS position error (a secondary,
-        // unweighted measure) may not grow by more than 1 % with it.
-        if !(test.pass && g2 <= 1.01 * g_prev) {
-            let label = e.label();
+            // A missing effect can drag the geometry far from nominal while the model tries
+            // to absorb it; refit also from the starting geometry with the effects'
+            // estimates, and from the current fit with the effect at zero (never worse than
+            // the current fit), and keep the best optimum on the first valid start's weights.
+            let mut st2 = state0.clone();
+            for &sl in new_slots.iter().filter(|s| !base_slots.contains(s)) {
+                st2.set(sl, jump.get(sl));
+            }
+            let mut best: Option<(Problem, fit::Fitted)> = None;
+            for start in [jump, st2, cur.state.clone()] {
+                let mut pb = prob.clone();
+                let Ok(alt) = fit::fit_balanced(&mut pb, &start, &new_slots, &pr) else {
+                    continue;
+                };
+                match &mut best {
+                    None => best = Some((pb, alt)),
+                    Some((pa, refit)) => {
+                        let alt_cost = fit::cost_at(pa, &alt.state, &new_slots, &pr)?;
+                        if alt_cost < refit.cost {
+                            *refit = fit::Fitted {
+                                cost: alt_cost,
+                                ..alt
+                            };
+                        }
+                    }
+                }
+            }
+            let Some((_, refit)) = best else {
+                return Err(DiscoverError::Data(
+                    "no start of the refit stays within the model's valid range".into(),
+                ));
+            };
+            let (mut prob2, noise2) = problem(&lay, &refit.state, new_slots.len())?;
+            let cur2 = fit::fit_balanced(&mut prob2, &refit.state, &new_slots, &pr)?;
+            let (lof2, a_fit2) = plain_lack_of_fit(&prob2, &cur2.state, &new_slots)?;
+            // The refitted model must predict held-out configurations better than the model
+            // before it, on the same weights: positive and significant (paired over held-out
+            // configurations), whatever the linearised scores said.
+            let all_cols = |n: usize| (0..n).collect::<Vec<_>>();
+            let eqs = fold_eqs(&prob2, &cur2.lin, &lay.folds, lay.holdout).with_prior(
+                &pr,
+                &new_slots,
+                &cur2.state,
+            );
+            let (costs_new, g2) = heldout(
+                &prob2,
+                &cur2.lin,
+                &eqs,
+                &lay.folds,
+                &all_cols(new_slots.len()),
+            );
+            let lin_prev = fit::linearise(&prob2, &cur.state, &slots)?;
+            let eqs_prev = fold_eqs(&prob2, &lin_prev, &lay.folds, lay.holdout).with_prior(
+                &prior_of(&slots),
+                &slots,
+                &cur.state,
+            );
+            let (costs_prev, g_prev) = heldout(
+                &prob2,
+                &lin_prev,
+                &eqs_prev,
+                &lay.folds,
+                &all_cols(slots.len()),
+            );
+            let d: Vec<f64> = costs_prev
+                .iter()
+                .zip(&costs_new)
+                .map(|(a, b)| a - b)
+                .collect();
+            Ok((prob2, noise2, cur2, lof2, a_fit2, d, g2, g_prev))
+        };
+        let label = e.label();
+        let outcome = attempt();
+        let reject = |steps: &mut Vec<Step>, note: String| {
             if let Some(step) = steps.last_mut() {
                 step.accepted = None;
                 if let Some(sc) = step.candidates.iter_mut().find(|c| c.label == label) {
                     sc.passed = false;
-                    sc.note = format!(
-                        "rejected after the nonlinear refit: held-out RMS {g_prev:.3} → {g2:.3} mm, paired t = {:.2}, {} of {} held-out configurations better",
-                        test.t,
-                        test.better,
-                        d.len()
-                    );
+                    sc.note = note;
                 }
             }
-            (prob, noise, cur, slots, lof, a_fit) = before;
+        };
+        let (prob2, noise2, cur2, lof2, a_fit2, d, g2, g_prev) = match outcome {
+            Ok(o) => o,
+            Err(err) => {
+                reject(&mut steps, format!("fit failed: {err}; skipped"));
+                rejected.push(e);
+                continue;
+            }
+        };
+        let test = Paired::new(&d, opts.alpha);
+        // The statistic is the whitened held-out cost; the RMS position error (a secondary,
+        // unweighted measure) may not grow by more than 1 % with it.
+        if !(test.pass && g2 <= 1.01 * g_prev) {
+            reject(
+                &mut steps,
+                format!(
+                    "rejected after the nonlinear refit: held-out RMS {g_prev:.3} → {g2:.3} mm, paired t = {:.2}, {} of {} held-out configurations better",
+                    test.t,
+                    test.better,
+                    d.len()
+                ),
+            );
             rejected.push(e);
             continue;
         }
+        (prob, noise, cur, slots, lof, a_fit) = (prob2, noise2, cur2, new_slots, lof2, a_fit2);
         found.push((e, gap - g2));
         gap = g2;
         go = suspect(&lof, &noise);
@@ -533,7 +596,8 @@ pub fn discover(
         let lin = fit::linearise(&plain, &cur.state, &slots)?;
         let rows = plain.white_rows(|b| b.train);
         let cols: Vec<usize> = (0..slots.len()).collect();
-        let (a, _) = fit::normal_eq(&lin, &rows, &cols);
+        let (mut a, mut g_unused) = fit::normal_eq(&lin, &rows, &cols);
+        prior_of(&slots).add_to(&slots, &cur.state, &mut a, &mut g_unused, false);
         let dispersion = lof.between.ratio.min(lof.within.ratio).max(1.0);
         let df_pe = plain.pure_error(&lin.raw).1.max(1) as f64;
         let m = found.len() as f64;
@@ -575,11 +639,12 @@ pub fn discover(
             st.set(sl, 0.0);
         }
         slots.retain(|sl| !e.slots().contains(sl));
-        let pr = fit::prior(&slots, &base_slots);
+        let pr = prior_of(&slots);
         (prob, noise) = problem(&lay, &st, slots.len())?;
         cur = fit::fit_balanced(&mut prob, &st, &slots, &pr)?;
         (lof, a_fit) = plain_lack_of_fit(&prob, &cur.state, &slots)?;
-        let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout);
+        let eqs =
+            fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout).with_prior(&pr, &slots, &cur.state);
         gap = heldout(
             &prob,
             &cur.lin,
@@ -591,9 +656,8 @@ pub fn discover(
     }
     // Uncertainties at the final fit.
     let mut a = a_fit;
-    for (k, w) in fit::prior(&slots, &base_slots).iter().enumerate() {
-        a[(k, k)] += w;
-    }
+    let mut g_unused = DVector::zeros(slots.len());
+    prior_of(&slots).add_to(&slots, &cur.state, &mut a, &mut g_unused, true);
     let cov = fit::pinv(&a) * lof.between.ratio.min(lof.within.ratio).max(1.0);
     let effects_out: Vec<Found> = found
         .iter()

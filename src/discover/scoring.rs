@@ -124,8 +124,10 @@ pub(super) const STABLE: f64 = 0.8;
 /// Share of bootstrap resamples by configuration (multiplicities drawn with `rng`, applied
 /// to each training block's normal equations `blocks`) in which candidate `pick` has the
 /// largest ΔBIC among `ranges`.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn stability(
     blocks: &[(DMatrix<f64>, DVector<f64>)],
+    prior: (&DMatrix<f64>, &DVector<f64>),
     nb: usize,
     ranges: &[std::ops::Range<usize>],
     pick: usize,
@@ -141,8 +143,8 @@ pub(super) fn stability(
         for _ in 0..n {
             mult[rng.random_range(0..n)] += 1.0;
         }
-        let mut a = blocks[0].0.clone() * 0.0;
-        let mut g = blocks[0].1.clone() * 0.0;
+        let mut a = prior.0.clone();
+        let mut g = prior.1.clone();
         for ((ab, gb), m) in blocks.iter().zip(&mult) {
             if *m > 0.0 {
                 a += ab * *m;
@@ -176,6 +178,20 @@ pub(super) struct FoldEqs {
     pub(super) g: Vec<DVector<f64>>,
     pub(super) a_train: DMatrix<f64>,
     pub(super) g_train: DVector<f64>,
+}
+
+impl FoldEqs {
+    /// The training equations with `prior` (its held directions only) added, over the
+    /// columns `slots` at `state`: every linearised refit then holds what the fits hold.
+    pub(super) fn with_prior(
+        mut self,
+        prior: &fit::Prior,
+        slots: &[Slot],
+        state: &EffectState,
+    ) -> Self {
+        prior.add_to(slots, state, &mut self.a_train, &mut self.g_train, false);
+        self
+    }
 }
 
 pub(super) fn fold_eqs(
