@@ -14,6 +14,7 @@ mod independent;
 mod live;
 mod model;
 mod model_file;
+mod pinocchio;
 mod properties;
 mod record;
 mod servo;

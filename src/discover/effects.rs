@@ -59,6 +59,10 @@ pub enum Kind {
     BaseFrameError,
     /// A DH departure the model does not fit.
     GeometricDeparture,
+    /// A transmission whose ratio is off by a relative `s`: the link angle is off by `s·q`.
+    GearRatioError,
+    /// A tool or fixture that sags along gravity in proportion to the hung load, m/N.
+    ToolSag,
     /// Outside the library: one term `δq = c·φ` of a sparse dictionary per joint (φ: q²,
     /// q³, sin q, cos q, sin 2q, cos 2q of the joint's angle, or its approach direction),
     /// tried only when the library is exhausted and the lack of fit stays significant.
@@ -89,7 +93,7 @@ pub const GENERIC_BASIS: [(&str, usize, &str, &str); 7] = [
 
 impl Kind {
     /// Every kind, in library order.
-    pub const ALL: [Kind; 12] = [
+    pub const ALL: [Kind; 14] = [
         Kind::JointComplianceLinear,
         Kind::JointComplianceCubic,
         Kind::TransmissionError,
@@ -101,6 +105,8 @@ impl Kind {
         Kind::ToolOffsetError,
         Kind::BaseFrameError,
         Kind::GeometricDeparture,
+        Kind::GearRatioError,
+        Kind::ToolSag,
         Kind::Generic,
     ];
 
@@ -118,6 +124,8 @@ impl Kind {
             Kind::ToolOffsetError => "tool_offset_error",
             Kind::BaseFrameError => "base_frame_error",
             Kind::GeometricDeparture => "geometric_departure",
+            Kind::GearRatioError => "gear_ratio_error",
+            Kind::ToolSag => "tool_sag",
             Kind::Generic => "generic",
         }
     }
@@ -125,6 +133,37 @@ impl Kind {
     /// The kind with machine name `name`.
     pub fn from_name(name: &str) -> Option<Kind> {
         Kind::ALL.into_iter().find(|k| k.name() == name)
+    }
+
+    /// Prior plausibility on an arm like the PA10, 0 most plausible: used only to choose
+    /// among look-alikes that pass every test and that the held-out data cannot tell apart.
+    /// Harmonic-drive springs and periodic errors dominate a PA10's compliance and
+    /// repeatable error (the seed paper); geometry and frames come next; a cast link's
+    /// bending, thermal growth, a payload error and unnamed terms last.
+    pub fn plausibility(self) -> u8 {
+        match self {
+            Kind::JointComplianceLinear | Kind::JointComplianceCubic => 0,
+            Kind::TransmissionError
+            | Kind::EncoderEccentricity
+            | Kind::Backlash
+            | Kind::GearRatioError => 1,
+            Kind::ToolOffsetError | Kind::BaseFrameError | Kind::GeometricDeparture => 2,
+            Kind::LinkBending | Kind::ThermalExpansion | Kind::PayloadMassError | Kind::ToolSag => {
+                3
+            }
+            Kind::Generic => 4,
+        }
+    }
+
+    /// Why [`Kind::plausibility`] ranks it where it does, in words.
+    pub fn plausibility_reason(self) -> &'static str {
+        match self.plausibility() {
+            0 => "a harmonic drive's spring: the PA10's dominant compliance",
+            1 => "a periodic or lost-motion error of a joint's drive",
+            2 => "a geometric or frame error",
+            3 => "a link or load effect, smaller than a drive's on this arm",
+            _ => "an unnamed term",
+        }
     }
 
     /// A one-line human description.
@@ -153,6 +192,12 @@ impl Kind {
             Kind::ToolOffsetError => "flange → target translation error (m, flange frame)",
             Kind::BaseFrameError => "instrument → base frame error (m, rad)",
             Kind::GeometricDeparture => "a DH departure the model keeps fixed (m or rad)",
+            Kind::GearRatioError => {
+                "gear-ratio (scale) error: the link angle is off by s·q (s in rad/rad)"
+            }
+            Kind::ToolSag => {
+                "a tool or fixture that sags along gravity by c·load (c in m/N): a compliance outside the joints"
+            }
             Kind::Generic => {
                 "an unnamed term outside the library: the link angle off by c·φ (rad), φ a function of the joint's angle or its approach direction"
             }
@@ -189,7 +234,7 @@ fn spec(name: &str, unit: &'static str) -> ParamSpec {
 }
 
 /// Names of the joint-error components addressed by [`Slot::JointErr`] 0…12.
-pub const JOINT_ERROR_PARAMS: [&str; 13] = [
+pub const JOINT_ERROR_PARAMS: [&str; 14] = [
     "out1_sin",
     "out1_cos",
     "out2_sin",
@@ -203,6 +248,7 @@ pub const JOINT_ERROR_PARAMS: [&str; 13] = [
     "backlash",
     "poly2",
     "poly3",
+    "scale",
 ];
 
 impl Effect {
@@ -252,6 +298,8 @@ impl Effect {
             Kind::ToolOffsetError => (0..3).map(Slot::Tool).collect(),
             Kind::BaseFrameError => (0..6).map(Slot::Base).collect(),
             Kind::GeometricDeparture => vec![Slot::Dep(t)],
+            Kind::GearRatioError => vec![Slot::JointErr(t, 13)],
+            Kind::ToolSag => vec![Slot::ToolSag],
             Kind::Generic => vec![Slot::JointErr(t % 6, GENERIC_BASIS[t / 6].1)],
         }
     }
@@ -297,6 +345,8 @@ impl Effect {
                     crate::model::param_units()[i],
                 )]
             }
+            Kind::GearRatioError => vec![spec("scale", "rad/rad")],
+            Kind::ToolSag => vec![spec("compliance", "m/N")],
             Kind::Generic => {
                 let b = self.target.unwrap_or(0) / 6;
                 vec![spec("coefficient", GENERIC_BASIS[b].3)]
@@ -316,6 +366,7 @@ impl Effect {
                 | Kind::ToolOffsetError
                 | Kind::BaseFrameError
                 | Kind::GeometricDeparture
+                | Kind::GearRatioError
                 | Kind::Generic
         )
     }
@@ -330,7 +381,8 @@ pub enum Slot {
     Compliance(usize),
     /// Cubic stiffness of joint j, N·m/rad³.
     Kcub(usize),
-    /// Joint-error component k (see [`JOINT_ERROR_PARAMS`]) of joint j, rad.
+    /// Joint-error component k (see [`JOINT_ERROR_PARAMS`]) of joint j, rad (rad/radⁿ for
+    /// the polynomial and scale terms).
     JointErr(usize, usize),
     /// Base-frame correction: translation x, y, z (m), rotation x, y, z (rad), applied on
     /// the left of `base_from_instrument`.
@@ -343,6 +395,8 @@ pub enum Slot {
     Payload,
     /// Tool offset component, m.
     Tool(usize),
+    /// Sag of the tool along gravity per newton of hung load, m/N.
+    ToolSag,
 }
 
 impl Slot {
@@ -358,6 +412,7 @@ impl Slot {
             Slot::Bending(_) => 1e-6,
             Slot::Payload => 0.1,
             Slot::Tool(_) => 1e-4,
+            Slot::ToolSag => 1e-6,
         }
     }
 
@@ -389,6 +444,8 @@ pub struct EffectState {
     pub payload_kg: f64,
     /// Tool offset in the flange frame, m.
     pub tool_offset: [f64; 3],
+    /// Sag of the tool along gravity per newton of hung load, m/N.
+    pub tool_sag: f64,
 }
 
 impl EffectState {
@@ -424,6 +481,7 @@ impl EffectState {
             bending: [0.0; 6],
             payload_kg: 0.0,
             tool_offset: [0.0; 3],
+            tool_sag: 0.0,
         }
     }
 
@@ -439,6 +497,7 @@ impl EffectState {
             Slot::Bending(j) => self.bending[j],
             Slot::Payload => self.payload_kg,
             Slot::Tool(k) => self.tool_offset[k],
+            Slot::ToolSag => self.tool_sag,
         }
     }
 
@@ -454,6 +513,7 @@ impl EffectState {
             Slot::Bending(j) => self.bending[j] = v,
             Slot::Payload => self.payload_kg = v,
             Slot::Tool(k) => self.tool_offset[k] = v,
+            Slot::ToolSag => self.tool_sag = v,
         }
     }
 
@@ -537,6 +597,7 @@ fn je_ref(e: &JointError, k: usize) -> &f64 {
         4..=7 => &e.wave[(k - 4) / 2][k % 2],
         8 | 9 => &e.eccentricity[k - 8],
         11 | 12 => &e.polynomial[k - 11],
+        13 => &e.scale,
         _ => &e.backlash,
     }
 }
@@ -547,6 +608,7 @@ fn je_mut(e: &mut JointError, k: usize) -> &mut f64 {
         4..=7 => &mut e.wave[(k - 4) / 2][k % 2],
         8 | 9 => &mut e.eccentricity[k - 8],
         11 | 12 => &mut e.polynomial[k - 11],
+        13 => &mut e.scale,
         _ => &mut e.backlash,
     }
 }
@@ -674,6 +736,15 @@ pub fn predict(s: &EffectState, geom: &Model, obs: &Obs) -> Frame {
             x.translation.vector += u * (len * s.thermal[j] * obs.thermal);
         }
     }
+    if s.tool_sag != 0.0 {
+        let g = geom.gravity();
+        let dir = if g.norm() > 0.0 {
+            g / g.norm()
+        } else {
+            -Vector3::z()
+        };
+        x.translation.vector += dir * (s.tool_sag * obs.load_n);
+    }
     x
 }
 
@@ -711,6 +782,9 @@ pub fn candidates(fitted: &[Slot], geom_fixed: &[usize]) -> Vec<Effect> {
         if !has(Slot::JointErr(j, 8)) {
             out.push(e(Kind::EncoderEccentricity));
         }
+        if !has(Slot::JointErr(j, 13)) {
+            out.push(e(Kind::GearRatioError));
+        }
     }
     for &j in &THERMAL_LINKS {
         if !has(Slot::Thermal(j)) {
@@ -731,6 +805,7 @@ pub fn candidates(fitted: &[Slot], geom_fixed: &[usize]) -> Vec<Effect> {
     for (kind, slot) in [
         (Kind::PayloadMassError, Slot::Payload),
         (Kind::ToolOffsetError, Slot::Tool(0)),
+        (Kind::ToolSag, Slot::ToolSag),
         (Kind::BaseFrameError, Slot::Base(0)),
     ] {
         if !has(slot) {
@@ -774,9 +849,10 @@ pub fn modelled(fitted: &[Slot]) -> Vec<Effect> {
                 kind,
                 target: Some(j),
             })),
-            Kind::PayloadMassError | Kind::ToolOffsetError | Kind::BaseFrameError => {
-                all.push(Effect { kind, target: None })
-            }
+            Kind::PayloadMassError
+            | Kind::ToolOffsetError
+            | Kind::BaseFrameError
+            | Kind::ToolSag => all.push(Effect { kind, target: None }),
             Kind::GeometricDeparture => all.extend((0..24).map(|i| Effect {
                 kind,
                 target: Some(i),

@@ -470,18 +470,29 @@ impl Held {
         })
     }
 
-    /// The held slots' names and weights of direction `k` (weights ≥ 0.2 in size).
-    pub fn describe(&self, k: usize) -> Vec<(Slot, f64)> {
+    /// Direction `k` in words: its standard error and the slots with weights ≥ 0.2 in
+    /// size, largest first (`name`: a slot's name).
+    pub fn describe(&self, k: usize, name: impl Fn(Slot) -> String) -> String {
         let v = &self.dirs[k];
-        let mut out: Vec<(Slot, f64)> = self
+        let mut w: Vec<(Slot, f64)> = self
             .slots
             .iter()
             .zip(v.iter())
             .filter(|(_, w)| w.abs() >= 0.2)
             .map(|(s, w)| (*s, *w))
             .collect();
-        out.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
-        out
+        w.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+        let parts: Vec<String> = w
+            .iter()
+            .map(|(s, x)| format!("{} ({x:+.2})", name(*s)))
+            .collect();
+        let se = self.std_error[k];
+        let se = if se.is_finite() {
+            format!("{se:.3e}")
+        } else {
+            "∞".to_string()
+        };
+        format!("std error {se}: {}", parts.join(", "))
     }
 }
 

@@ -115,6 +115,10 @@ pub enum DiscoverError {
 /// The held-out error, in noise floors, below which the gap counts as closed.
 pub const GAP_CLOSED: f64 = 1.25;
 
+/// A repeatable resolver error whose 95 % interval lies above this many times the
+/// resolver's specified σ is reported as lack of fit that repeats per configuration.
+pub const REPEATABLE_EXCESS: f64 = 2.0;
+
 /// The slots the given model fits: departures (but the two a free base absorbs), the base
 /// frame, the springs it has, the joint errors it has.
 fn model_slots(model: &Model) -> Vec<Slot> {
@@ -134,7 +138,7 @@ fn model_slots(model: &Model) -> Vec<Slot> {
         if let Some(e) = d.joint_errors[j] {
             let st = EffectState::from_model(model, e.gear_ratio);
             s.extend(
-                (0..13)
+                (0..14)
                     .map(|k| Slot::JointErr(j, k))
                     .filter(|&sl| st.get(sl) != 0.0),
             );
@@ -344,9 +348,31 @@ pub fn discover(
         }
         scores.sort_by(|a, b| b.0.delta_bic.total_cmp(&a.0.delta_bic));
         let (base_costs, _) = heldout(&prob, &lin, &eqs, &lay.folds, &(0..nb).collect::<Vec<_>>());
+        let gate = Gate::new(
+            opts.alpha,
+            opts.min_delta_bic,
+            df_pe,
+            m,
+            dispersion,
+            ln_n,
+            ranges.iter().map(|r| r.len()).max().unwrap_or(1),
+        );
+        // The linearised held-out comparison of the model with and without candidate `ci`.
+        let heldout_test = |ci: usize| {
+            let cols: Vec<usize> = (0..nb).chain(ranges[ci].clone()).collect();
+            let (costs, gap_c) = heldout(&prob, &lin, &eqs, &lay.folds, &cols);
+            let d: Vec<f64> = base_costs.iter().zip(&costs).map(|(a, b)| a - b).collect();
+            (Paired::new(&d, opts.alpha), gap_c, costs)
+        };
+        let score_of = |scores: &[(Score, usize)], ci: usize| {
+            scores.iter().position(|(_, c)| *c == ci).unwrap_or(0)
+        };
         let mut accepted: Option<usize> = None;
-        let mut block_eqs: Option<Vec<(DMatrix<f64>, DVector<f64>)>> = None;
-        for (s, ci) in &mut scores {
+        let mut choice: Option<String> = None;
+        let mut sets: Option<Vec<Vec<usize>>> = None;
+        for idx in 0..scores.len() {
+            let ci = scores[idx].1;
+            let s = &mut scores[idx].0;
             if s.identifiable == 0 {
                 continue;
             }
@@ -361,66 +387,166 @@ pub fn discover(
                 s.note = format!("ΔBIC {:.1} ≤ {}", s.delta_bic, opts.min_delta_bic);
                 continue;
             }
-            if accepted.is_some() {
+            if s.note.is_empty() && accepted.is_some() {
                 s.note = "significant, but a better candidate was taken this step".into();
+            }
+            if accepted.is_some() {
                 continue;
             }
-            let cols: Vec<usize> = (0..nb).chain(ranges[*ci].clone()).collect();
-            let (costs, gap_c) = heldout(&prob, &lin, &eqs, &lay.folds, &cols);
-            let d: Vec<f64> = base_costs.iter().zip(&costs).map(|(a, b)| a - b).collect();
-            let n = d.len() as f64;
-            let test = Paired::new(&d, opts.alpha);
-            let (t, t_crit, better, sign_p) = (test.t, test.t_crit, test.better, test.sign_p);
-            s.heldout_gain = Some(test.mean * n);
-            s.paired_t = Some(t);
-            s.sign_p = Some(sign_p);
+            let (test, gap_c, _) = heldout_test(ci);
+            s.heldout_gain = Some(test.mean * base_costs.len() as f64);
+            s.paired_t = Some(test.t);
+            s.sign_p = Some(test.sign_p);
             s.heldout_gap_mm = Some(gap_c);
-            if test.pass {
-                // Would another configuration sample have named the same effect?
-                let blocks = block_eqs.get_or_insert_with(|| {
-                    let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
-                    prob.blocks
-                        .iter()
-                        .filter(|b| b.train)
-                        .map(|b| {
-                            let rows: Vec<usize> =
-                                (b.offset..b.offset + 6 * (b.rows.len() + 1)).collect();
-                            fit::normal_eq(&lin, &rows, &cols)
-                        })
-                        .collect()
-                });
-                let mut rng = Pcg64::seed_from_u64(opts.seed ^ 0xb007 ^ steps.len() as u64);
+            if !test.pass {
+                s.note = format!(
+                    "held-out gain not significant: paired t = {:.2} ≤ {:.2}, {} of {} held-out configurations better (sign-test p = {:.1e})",
+                    test.t,
+                    test.t_crit,
+                    test.better,
+                    base_costs.len(),
+                    test.sign_p
+                );
+                continue;
+            }
+            // Its look-alikes: candidates whose columns beyond the model share a direction
+            // with it (the data barely tell them apart).
+            let group: Vec<usize> = std::iter::once(ci)
+                .chain((0..cands.len()).filter(|&o| {
+                    o != ci
+                        && canonical_correlation(
+                            a,
+                            &a_bb_inv,
+                            ranges[ci].clone(),
+                            ranges[o].clone(),
+                        ) >= 0.9
+                }))
+                .collect();
+            // Would other samples of configurations have selected it (or a look-alike)?
+            let sets = sets.get_or_insert_with(|| {
+                let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
+                let blocks: Vec<_> = prob
+                    .blocks
+                    .iter()
+                    .filter(|b| b.train)
+                    .map(|b| {
+                        let rows: Vec<usize> =
+                            (b.offset..b.offset + 6 * (b.rows.len() + 1)).collect();
+                        fit::normal_eq(&lin, &rows, &cols)
+                    })
+                    .collect();
                 let (mut pa_, mut pg_) = (
                     DMatrix::zeros(all.len(), all.len()),
                     DVector::zeros(all.len()),
                 );
                 prior_all.add_to(&all, &cur.state, &mut pa_, &mut pg_, false);
-                let st = stability(
-                    blocks,
-                    (&pa_, &pg_),
-                    nb,
-                    &ranges,
-                    *ci,
-                    dispersion,
-                    ln_n,
-                    &mut rng,
-                );
-                s.stability = Some(st);
-                if st >= STABLE {
-                    s.passed = true;
-                    s.note = format!("accepted (best in {:.0} % of resamples)", 100.0 * st);
-                    accepted = Some(*ci);
-                } else {
-                    s.note = format!(
-                        "uncertain: best in only {:.0} % of {BOOTSTRAP} bootstrap resamples by configuration",
-                        100.0 * st
-                    );
-                }
-            } else {
+                let mut rng = Pcg64::seed_from_u64(opts.seed ^ 0xb007 ^ steps.len() as u64);
+                stability(&blocks, (&pa_, &pg_), nb, &ranges, &gate, &mut rng)
+            });
+            let st = share_holding(sets, &group);
+            s.stability = Some(st);
+            if st < STABLE {
                 s.note = format!(
-                    "held-out gain not significant: paired t = {t:.2} ≤ {t_crit:.2}, {better} of {n} held-out configurations better (sign-test p = {sign_p:.1e})"
+                    "uncertain: in the selection of only {:.0} % of {BOOTSTRAP} bootstrap resamples by configuration{}",
+                    100.0 * st,
+                    if group.len() > 1 {
+                        " (it or a look-alike)"
+                    } else {
+                        ""
+                    }
                 );
+                continue;
             }
+            // Within the look-alikes that pass too: told apart by the held-out data, else by
+            // physical plausibility (a harmonic drive's spring before a cast link's bending).
+            let mut pick = ci;
+            let members: Vec<usize> = group
+                .iter()
+                .copied()
+                .filter(|&o| {
+                    let sc = &scores[score_of(&scores, o)].0;
+                    sc.p_adjusted < opts.alpha && sc.delta_bic > opts.min_delta_bic
+                })
+                .filter(|&o| o == ci || heldout_test(o).0.pass)
+                .collect();
+            if members.len() > 1 {
+                let best_heldout = *members
+                    .iter()
+                    .max_by(|&&x, &&y| heldout_test(x).0.mean.total_cmp(&heldout_test(y).0.mean))
+                    .unwrap_or(&ci);
+                let plausible = *members
+                    .iter()
+                    .min_by_key(|&&o| cands[o].kind.plausibility())
+                    .unwrap_or(&ci);
+                let (_, _, cost_best) = heldout_test(best_heldout);
+                let (_, _, cost_plaus) = heldout_test(plausible);
+                let d: Vec<f64> = cost_plaus
+                    .iter()
+                    .zip(&cost_best)
+                    .map(|(p, b)| p - b)
+                    .collect();
+                let apart = Paired::new(&d, opts.alpha);
+                let others: Vec<String> = members
+                    .iter()
+                    .filter(|&&o| o != best_heldout && o != plausible)
+                    .map(|&o| cands[o].label())
+                    .collect();
+                let rest = if others.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (also alike: {})", others.join(", "))
+                };
+                if best_heldout == plausible {
+                    pick = best_heldout;
+                    choice = Some(format!(
+                        "{} chosen among its look-alikes: the best held-out gain and the most plausible{rest}",
+                        cands[pick].label()
+                    ));
+                } else if apart.pass {
+                    pick = best_heldout;
+                    choice = Some(format!(
+                        "{} chosen over its look-alike {}: the held-out data tell them apart (paired t = {:.2}, {} of {} held-out configurations better){rest}",
+                        cands[pick].label(),
+                        cands[plausible].label(),
+                        apart.t,
+                        apart.better,
+                        d.len()
+                    ));
+                } else {
+                    pick = plausible;
+                    choice = Some(format!(
+                        "{} chosen over its look-alike {}: the held-out data cannot tell them apart (paired t = {:.2}), so the physically more plausible one ({}){rest}",
+                        cands[pick].label(),
+                        cands[best_heldout].label(),
+                        apart.t,
+                        cands[pick].kind.plausibility_reason()
+                    ));
+                }
+            }
+            accepted = Some(pick);
+            let pi = score_of(&scores, pick);
+            if pi != idx {
+                let (t2, g2, _) = heldout_test(pick);
+                let sc = &mut scores[pi].0;
+                sc.heldout_gain = Some(t2.mean * base_costs.len() as f64);
+                sc.paired_t = Some(t2.t);
+                sc.sign_p = Some(t2.sign_p);
+                sc.heldout_gap_mm = Some(g2);
+                sc.stability = Some(st);
+                scores[idx].0.note =
+                    format!("a look-alike of {}, which was taken", cands[pick].label());
+            }
+            let sc = &mut scores[pi].0;
+            sc.passed = true;
+            sc.note = format!(
+                "accepted (in the selection of {:.0} % of resamples{})",
+                100.0 * st,
+                if group.len() > 1 {
+                    ", with its look-alikes"
+                } else {
+                    ""
+                }
+            );
         }
         let look_alikes = match accepted {
             None => Vec::new(),
@@ -446,6 +572,7 @@ pub fn discover(
             accepted: accepted.map(|ci| cands[ci].label()),
             generic,
             look_alikes,
+            choice,
         };
         steps.push(step);
         let Some(ci) = accepted else {
@@ -746,6 +873,37 @@ pub fn discover(
         };
         format!("the gap is NOT closed: {why}")
     };
+    let slot_name = |sl: Slot| match sl {
+        Slot::Dep(i) => crate::model::param_names()[i].to_string(),
+        Slot::Base(k) => format!("base {}", ["x", "y", "z", "rx", "ry", "rz"][k]),
+        other => format!("{other:?}"),
+    };
+    let held_out: Vec<String> = (0..held.dirs.len())
+        .map(|k| held.describe(k, slot_name))
+        .collect();
+    // A repeatable component far above the resolver's specification is a finding, never a
+    // weight (the weights use at most the specification).
+    let mut findings = Vec::new();
+    let spec_rad = lay.resolver_arcmin * crate::accuracy::ARCMIN;
+    for (when, n) in [("the starting model", &noise0), ("the final model", &noise)] {
+        let r = &n.model.repeatable_rad;
+        if n.model.repeatable_p < opts.alpha && r.lo > REPEATABLE_EXCESS * spec_rad {
+            findings.push(format!(
+                "at {when} the configurations' mean residuals repeat like a resolver error of {:.2} arcmin (95 % interval from {:.2}), {:.1}× the resolver's specified {:.2} arcmin: the model misses something that repeats per configuration (weights and floor use at most the specification)",
+                r.value / crate::accuracy::ARCMIN,
+                r.lo / crate::accuracy::ARCMIN,
+                r.value / spec_rad,
+                lay.resolver_arcmin
+            ));
+        }
+    }
+    let excess_at_end = findings.iter().any(|f| f.starts_with("at the final"));
+    let gap_closed = gap_closed && !excess_at_end;
+    let verdict = if excess_at_end && !verdict.starts_with("the gap is NOT closed") {
+        "the gap is NOT closed: the configurations still show a repeatable error far above the resolver's specification: the model misses something that repeats per configuration".to_string()
+    } else {
+        verdict
+    };
     Ok(Discovery {
         significant_gap_before: significant,
         gap_closed,
@@ -773,6 +931,8 @@ pub fn discover(
             .map(Effect::label)
             .collect(),
         pruned,
+        held: held_out,
+        findings,
         evidence,
         model: model_out,
     })

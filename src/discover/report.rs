@@ -117,6 +117,9 @@ pub struct Step {
     /// accepted one's on these poses (largest canonical correlation ≥ 0.9): what the data
     /// barely tell apart from it, with that correlation.
     pub look_alikes: Vec<(String, f64)>,
+    /// How the accepted effect was chosen among look-alikes that pass every test (by the
+    /// held-out data, else by physical plausibility), when there were several.
+    pub choice: Option<String>,
 }
 
 /// An effect found and added.
@@ -201,6 +204,13 @@ pub struct Discovery {
     /// Effects accepted on the way and removed at the end because the effects found after
     /// them explain them (backward elimination), with why.
     pub pruned: Vec<String>,
+    /// The combinations of the starting model's parameters these data cannot determine,
+    /// held at their start values in every fit (standard error, scale units of 0.1 mm /
+    /// 0.1 mrad, and the parameters with their weights).
+    pub held: Vec<String>,
+    /// Findings about the data that are not effects: a repeatable component far above the
+    /// resolver's specification is lack of fit that repeats per configuration, not noise.
+    pub findings: Vec<String>,
     /// Residual evidence per effect found.
     #[serde(skip)]
     pub evidence: Vec<Evidence>,

@@ -65,11 +65,34 @@ pub(super) fn projected_drop(
     g_b: &DVector<f64>,
     r: std::ops::Range<usize>,
 ) -> (usize, f64) {
-    let (nb, k) = (a_bb_inv.nrows(), r.len());
-    let a_cb = a.view((r.start, 0), (k, nb)).into_owned();
-    let a_cc = a.view((r.start, r.start), (k, k)).into_owned();
+    let base: Vec<usize> = (0..a_bb_inv.nrows()).collect();
+    let cols: Vec<usize> = r.collect();
+    drop_given(a, g, &base, a_bb_inv, g_b, &cols)
+}
+
+fn sub(a: &DMatrix<f64>, rows: &[usize], cols: &[usize]) -> DMatrix<f64> {
+    DMatrix::from_fn(rows.len(), cols.len(), |i, j| a[(rows[i], cols[j])])
+}
+
+fn subv(g: &DVector<f64>, rows: &[usize]) -> DVector<f64> {
+    DVector::from_fn(rows.len(), |i, _| g[rows[i]])
+}
+
+/// [`projected_drop`] of the columns `cols` given any set of columns `base` (`a_bb_inv`,
+/// `g_b`: the inverse of their normal matrix and their gradient).
+fn drop_given(
+    a: &DMatrix<f64>,
+    g: &DVector<f64>,
+    base: &[usize],
+    a_bb_inv: &DMatrix<f64>,
+    g_b: &DVector<f64>,
+    cols: &[usize],
+) -> (usize, f64) {
+    let k = cols.len();
+    let a_cb = sub(a, cols, base);
+    let a_cc = sub(a, cols, cols);
     let schur = &a_cc - &a_cb * a_bb_inv * a_cb.transpose();
-    let h = g.rows(r.start, k).into_owned() - &a_cb * (a_bb_inv * g_b);
+    let h = subv(g, cols) - &a_cb * (a_bb_inv * g_b);
     // Identifiable part: eigen-directions of the normalised Schur complement.
     let dn = DVector::from_fn(k, |i, _| {
         let v = a_cc[(i, i)];
@@ -87,6 +110,110 @@ pub(super) fn projected_drop(
         }
     }
     (ident, drop)
+}
+
+/// The thresholds a candidate passes in a linearised selection: the F test (Bonferroni
+/// over `m` candidates, against the pure error's `df_pe` degrees of freedom) and ΔBIC, on
+/// the cost scaled by `dispersion`. The F test's critical values are computed once
+/// ([`Gate::new`]): the bootstrap asks the question thousands of times.
+#[derive(Debug, Clone)]
+pub(super) struct Gate {
+    min_delta_bic: f64,
+    dispersion: f64,
+    ln_n: f64,
+    /// Critical `Δχ²/k` of the adjusted F test for k = 1…, index k − 1.
+    crit: Vec<f64>,
+}
+
+impl Gate {
+    /// The gate for candidates of up to `max_k` identifiable directions.
+    pub(super) fn new(
+        alpha: f64,
+        min_delta_bic: f64,
+        df_pe: f64,
+        m: f64,
+        dispersion: f64,
+        ln_n: f64,
+        max_k: usize,
+    ) -> Self {
+        let crit = (1..=max_k.max(1))
+            .map(|k| {
+                let k = k as f64;
+                let p = |x: f64| (stats::f_sf(x, k, df_pe) * m).min(1.0);
+                // p falls with x: bracket, then bisect to a relative 1e-9.
+                let (mut lo, mut hi) = (0.0, 1.0);
+                while p(hi) >= alpha && hi < 1e12 {
+                    lo = hi;
+                    hi *= 2.0;
+                }
+                for _ in 0..100 {
+                    let mid = 0.5 * (lo + hi);
+                    if p(mid) >= alpha {
+                        lo = mid
+                    } else {
+                        hi = mid
+                    }
+                    if hi - lo <= 1e-9 * hi {
+                        break;
+                    }
+                }
+                hi
+            })
+            .collect();
+        Self {
+            min_delta_bic,
+            dispersion,
+            ln_n,
+            crit,
+        }
+    }
+
+    fn passes(&self, ident: usize, drop: f64) -> Option<f64> {
+        if ident == 0 {
+            return None;
+        }
+        let chi2 = drop / self.dispersion;
+        let bic = chi2 - ident as f64 * self.ln_n;
+        let crit = self.crit.get(ident - 1).copied().unwrap_or(f64::INFINITY);
+        (chi2 / ident as f64 > crit && bic > self.min_delta_bic).then_some(bic)
+    }
+}
+
+/// Forward selection on linearised normal equations `a`, `g` (the first `nb` columns the
+/// model's): at most `rounds` times, the candidate of `ranges` with the largest ΔBIC that
+/// passes `gate` given the model and the candidates chosen before it joins. Returns the
+/// chosen candidates in order.
+pub(super) fn select(
+    a: &DMatrix<f64>,
+    g: &DVector<f64>,
+    nb: usize,
+    ranges: &[std::ops::Range<usize>],
+    gate: &Gate,
+    rounds: usize,
+) -> Vec<usize> {
+    let mut base: Vec<usize> = (0..nb).collect();
+    let mut chosen: Vec<usize> = Vec::new();
+    for _ in 0..rounds {
+        let inv = fit::pinv(&sub(a, &base, &base));
+        let g_b = subv(g, &base);
+        let mut best: Option<(usize, f64)> = None;
+        for (ci, r) in ranges.iter().enumerate() {
+            if chosen.contains(&ci) {
+                continue;
+            }
+            let cols: Vec<usize> = r.clone().collect();
+            let (ident, drop) = drop_given(a, g, &base, &inv, &g_b, &cols);
+            if let Some(bic) = gate.passes(ident, drop)
+                && best.is_none_or(|(_, b)| bic > b)
+            {
+                best = Some((ci, bic));
+            }
+        }
+        let Some((ci, _)) = best else { break };
+        chosen.push(ci);
+        base.extend(ranges[ci].clone());
+    }
+    chosen
 }
 
 /// The largest canonical correlation between the column blocks `r1` and `r2` of the normal
@@ -118,58 +245,55 @@ pub(super) fn canonical_correlation(
 /// Resamples for the stability check.
 pub(super) const BOOTSTRAP: usize = 100;
 
-/// Least share of resamples in which a named effect must win.
+/// Least share of resamples whose selection must hold a named effect (or a look-alike).
 pub(super) const STABLE: f64 = 0.8;
 
-/// Share of bootstrap resamples by configuration (multiplicities drawn with `rng`, applied
-/// to each training block's normal equations `blocks`) in which candidate `pick` has the
-/// largest ΔBIC among `ranges`.
+/// Rounds of the linearised selection in each resample.
+pub(super) const SELECT_ROUNDS: usize = 4;
+
+/// The selected sets of [`BOOTSTRAP`] resamples by configuration: multiplicities drawn with
+/// `rng` applied to each training block's normal equations `blocks` (plus `prior`), then a
+/// linearised forward selection ([`select`]) over `ranges`. Stability is judged on these
+/// sets — how often a candidate (or one of its look-alikes) is in the selection — not on
+/// which single candidate ranks first: when several effects are missing at once they
+/// compete for first place in every resample, and a first-place rule names none of them.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn stability(
     blocks: &[(DMatrix<f64>, DVector<f64>)],
     prior: (&DMatrix<f64>, &DVector<f64>),
     nb: usize,
     ranges: &[std::ops::Range<usize>],
-    pick: usize,
-    dispersion: f64,
-    ln_n: f64,
+    gate: &Gate,
     rng: &mut Pcg64,
-) -> f64 {
+) -> Vec<Vec<usize>> {
     use rand::RngExt;
     let n = blocks.len();
-    let mut wins = 0;
-    for _ in 0..BOOTSTRAP {
-        let mut mult = vec![0.0; n];
-        for _ in 0..n {
-            mult[rng.random_range(0..n)] += 1.0;
-        }
-        let mut a = prior.0.clone();
-        let mut g = prior.1.clone();
-        for ((ab, gb), m) in blocks.iter().zip(&mult) {
-            if *m > 0.0 {
-                a += ab * *m;
-                g += gb * *m;
+    (0..BOOTSTRAP)
+        .map(|_| {
+            let mut mult = vec![0.0; n];
+            for _ in 0..n {
+                mult[rng.random_range(0..n)] += 1.0;
             }
-        }
-        let a_bb_inv = fit::pinv(&a.view((0, 0), (nb, nb)).into_owned());
-        let g_b = g.rows(0, nb).into_owned();
-        let best = ranges
-            .iter()
-            .enumerate()
-            .map(|(ci, r)| {
-                let (ident, drop) = projected_drop(&a, &g, &a_bb_inv, &g_b, r.clone());
-                let bic = if ident == 0 {
-                    f64::NEG_INFINITY
-                } else {
-                    drop / dispersion - ident as f64 * ln_n
-                };
-                (ci, bic)
-            })
-            .max_by(|x, y| x.1.total_cmp(&y.1))
-            .map(|x| x.0);
-        wins += usize::from(best == Some(pick));
-    }
-    wins as f64 / BOOTSTRAP as f64
+            let mut a = prior.0.clone();
+            let mut g = prior.1.clone();
+            for ((ab, gb), m) in blocks.iter().zip(&mult) {
+                if *m > 0.0 {
+                    a += ab * *m;
+                    g += gb * *m;
+                }
+            }
+            select(&a, &g, nb, ranges, gate, SELECT_ROUNDS)
+        })
+        .collect()
+}
+
+/// Share of `sets` that hold any candidate of `group`.
+pub(super) fn share_holding(sets: &[Vec<usize>], group: &[usize]) -> f64 {
+    let hits = sets
+        .iter()
+        .filter(|s| s.iter().any(|c| group.contains(c)))
+        .count();
+    hits as f64 / sets.len().max(1) as f64
 }
 
 /// Normal equations of every fold's blocks (all columns).

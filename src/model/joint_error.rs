@@ -4,7 +4,7 @@
 //! These are the run-time effects `pa10 discover` can add to a model (besides compliance).
 //! With them the link angle is
 //! `q_link = q_motor − δ(τ) − e(q_motor) − (b/2)·dir`, where `e` is the periodic error plus
-//! any polynomial term `p₂·q² + p₃·q³` (an unnamed term discovery localised outside its
+//! a gear-ratio error `s·q` and any polynomial term `p₂·q² + p₃·q³` (an unnamed term discovery localised outside its
 //! library), `b` the backlash (total lost motion, rad) and `dir` ∈ {−1, 0, +1} the
 //! direction the joint last moved in (0: unknown, the centre of the lost motion).
 
@@ -54,6 +54,10 @@ pub struct JointError {
     /// `pa10 discover` localised when its library was exhausted.
     #[serde(default, skip_serializing_if = "is_zero1")]
     pub polynomial: [f64; 2],
+    /// Gear-ratio (scale) error `s`: the link angle is off by `s·q` (rad/rad), a
+    /// transmission whose ratio differs from the nominal by the relative amount `s`.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub scale: f64,
 }
 
 impl Default for JointError {
@@ -65,6 +69,7 @@ impl Default for JointError {
             eccentricity: [0.0; 2],
             backlash: 0.0,
             polynomial: [0.0; 2],
+            scale: 0.0,
         }
     }
 }
@@ -91,7 +96,7 @@ impl JointError {
         let (s, c) = q.sin_cos();
         e + self.eccentricity[0] * s
             + self.eccentricity[1] * c
-            + q * q * (self.polynomial[0] + self.polynomial[1] * q)
+            + q * (self.scale + q * (self.polynomial[0] + self.polynomial[1] * q))
     }
 
     /// The whole offset `q_motor − δ − q_link` (rad) at motor angle `q` after an approach in
@@ -114,6 +119,7 @@ impl JointError {
         let r = std::f64::consts::TAU;
         s + self.eccentricity[0].abs()
             + self.eccentricity[1].abs()
+            + self.scale.abs()
             + 2.0 * r * self.polynomial[0].abs()
             + 3.0 * r * r * self.polynomial[1].abs()
     }
@@ -152,6 +158,15 @@ impl JointError {
                     format!("coefficients must be finite and within ±0.01 rad/radⁿ, got {v}"),
                 ));
             }
+        }
+        if !(self.scale.is_finite() && self.scale.abs() <= 0.01) {
+            return Err((
+                format!("{key}.scale"),
+                format!(
+                    "a gear-ratio error must be finite and within ±0.01 rad/rad, got {}",
+                    self.scale
+                ),
+            ));
         }
         let slope = self.max_slope();
         if slope > MAX_SLOPE {

@@ -188,6 +188,9 @@ fn print(d: &Discovery, out: Option<&Path>) {
         }
     }
     for s in &d.steps {
+        if let Some(c) = &s.choice {
+            println!("\nstep {}: {c}", s.step);
+        }
         if let (Some(a), false) = (&s.accepted, s.look_alikes.is_empty()) {
             let l: Vec<String> = s
                 .look_alikes
@@ -209,6 +212,15 @@ fn print(d: &Discovery, out: Option<&Path>) {
     }
     for p in &d.pruned {
         println!("\nremoved at the end: {p}");
+    }
+    if !d.held.is_empty() {
+        println!(
+            "\nheld at their start values (these data cannot determine them): {}",
+            d.held.join("; ")
+        );
+    }
+    for f in &d.findings {
+        println!("\nfinding: {f}");
     }
     println!();
     if d.effects.is_empty() {

@@ -1,0 +1,196 @@
+//! Calibration and discovery judged on campaigns from the Pinocchio generator
+//! (`tests/pin/campaign.py`: a URDF written from `shared/pa10-facts.md`, kinematics,
+//! Jacobians and gravity by Pinocchio, random campaign designs), which shares no code with
+//! `src/`. The library reads only the CSV and sidecar; the generator's `truth.json` is read
+//! here, by the judge.
+//!
+//! Needs `pip install pin`. CI sets `PA10_REQUIRE_PIN=1`, so there a missing Pinocchio is a
+//! failure; elsewhere these tests say SKIPPED. The distribution study is
+//! `python3 tests/pin/study.py` (docs/discovery.md).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use pa10::calib::dataset::Dataset;
+use pa10::calib::fit::{CalibOptions, calibrate};
+use pa10::discover::{DiscoverOptions, Discovery, discover};
+use pa10::model::Model;
+
+fn script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/pin/campaign.py")
+}
+
+/// Whether Pinocchio is importable; panics when it is required (CI) and missing.
+fn pinocchio() -> bool {
+    let required = std::env::var("PA10_REQUIRE_PIN").is_ok_and(|v| v == "1");
+    let ok = Command::new("python3")
+        .args(["-c", "import pinocchio"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        assert!(!required, "PA10_REQUIRE_PIN=1 but `import pinocchio` fails");
+        eprintln!("SKIPPED: Pinocchio not installed (pip install pin); CI runs these checks");
+    }
+    ok
+}
+
+/// A generated campaign: the training and held-out sets, and the generator's truth.
+struct Campaign {
+    cal: Dataset,
+    val: Dataset,
+    truth: serde_json::Value,
+}
+
+fn generate(tag: &str, args: &[&str]) -> Campaign {
+    let dir = std::env::temp_dir().join(format!("pa10-pin-{tag}-{}", std::process::id()));
+    let out = Command::new("python3")
+        .arg(script())
+        .args(args)
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .expect("run python3");
+    assert!(
+        out.status.success(),
+        "campaign.py {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let c = Campaign {
+        cal: Dataset::load(dir.join("cal.csv")).expect("cal.csv"),
+        val: Dataset::load(dir.join("val.csv")).expect("val.csv"),
+        truth: serde_json::from_str(
+            &std::fs::read_to_string(dir.join("truth.json")).expect("truth.json"),
+        )
+        .expect("truth.json parses"),
+    };
+    let _ = std::fs::remove_dir_all(&dir);
+    c
+}
+
+fn calibrated(c: &Campaign) -> Model {
+    calibrate(
+        &Model::nominal(),
+        &c.cal,
+        None,
+        &CalibOptions::default(),
+        &|_| {},
+    )
+    .expect("calibrate")
+    .model
+}
+
+fn discovered(c: &Campaign, start: &Model) -> Discovery {
+    discover(start, &c.cal, Some(&c.val), &DiscoverOptions::default()).expect("discover")
+}
+
+fn labels(d: &Discovery) -> Vec<&str> {
+    d.effects.iter().map(|e| e.label.as_str()).collect()
+}
+
+/// On random designs (tool, instrument, poses, loads, repeats, noise family drawn from the
+/// seed), a hidden effect in the library and two outside it are each named on the right
+/// joint and in the right form; a clean campaign names nothing; no run aborts.
+#[test]
+fn hidden_effects_are_named_on_pinocchio_campaigns() {
+    if !pinocchio() {
+        return;
+    }
+    let _cpu = crate::common::busy_lock();
+    for (seed, hidden, expect) in [
+        ("3", "spring_j4", Some("joint_compliance_linear[J4]")),
+        ("4", "scale_j3", Some("gear_ratio_error[J3]")),
+        ("6", "tool_sag", Some("tool_sag")),
+        ("8", "none", None),
+    ] {
+        let c = generate(hidden, &["--seed", seed, "--hidden", hidden]);
+        let d = discovered(&c, &calibrated(&c));
+        let design = &c.truth["design"];
+        match expect {
+            Some(label) => assert_eq!(
+                labels(&d),
+                vec![label],
+                "{hidden} ({design}): {}",
+                d.verdict
+            ),
+            None => assert!(d.effects.is_empty(), "clean ({design}): {:?}", labels(&d)),
+        }
+        assert!(
+            d.gap_closed && d.gap_after_mm <= 1.25 * d.noise_floor_mm,
+            "{hidden}: {}",
+            d.verdict
+        );
+    }
+}
+
+/// The paper's campaign design with two effects hidden at once (a J4 spring and a J3
+/// transmission error, the set that used to end the run with a runaway `da5`): both are
+/// named, on their joints.
+#[test]
+fn two_hidden_effects_at_once_on_the_papers_design() {
+    if !pinocchio() {
+        return;
+    }
+    let _cpu = crate::common::busy_lock();
+    let c = generate(
+        "two",
+        &[
+            "--seed",
+            "1",
+            "--paper",
+            "--family",
+            "reading",
+            "--hidden",
+            "spring_j4,transmission_j3",
+        ],
+    );
+    let d = discovered(&c, &calibrated(&c));
+    let l = labels(&d);
+    assert!(
+        l.contains(&"joint_compliance_linear[J4]"),
+        "{l:?}: {}",
+        d.verdict
+    );
+    assert!(
+        d.effects
+            .iter()
+            .any(|e| e.joint == Some(3) && e.name != "joint_compliance_linear"),
+        "{l:?}"
+    );
+    assert!(
+        d.effects.iter().all(|e| matches!(e.joint, Some(3 | 4))),
+        "{l:?}"
+    );
+}
+
+/// From the rigid nominal model on a random design, the paper's springs on J2, J3 and J5
+/// are found together (they compete in every bootstrap resample; stability is judged on the
+/// selected set), nothing on the other joints, and the gap closes.
+#[test]
+fn from_the_nominal_model_the_springs_are_found_together() {
+    if !pinocchio() {
+        return;
+    }
+    let _cpu = crate::common::busy_lock();
+    let c = generate("nominal", &["--seed", "8", "--hidden", "none"]);
+    let d = discovered(&c, &Model::nominal());
+    let mut springs: Vec<usize> = d
+        .effects
+        .iter()
+        .filter(|e| e.name == "joint_compliance_linear")
+        .filter_map(|e| e.joint)
+        .collect();
+    springs.sort_unstable();
+    assert_eq!(springs, vec![2, 3, 5], "{:?}", labels(&d));
+    assert!(d.effects.iter().all(|e| matches!(e.joint, Some(2 | 3 | 5))));
+    assert!(d.gap_closed, "{}", d.verdict);
+    assert!(d.gap_after_mm <= 1.3 * d.noise_floor_mm, "{}", d.verdict);
+    // The missing springs showed first as a repeatable component far above the resolver's
+    // specification: reported as a finding, never taken for noise.
+    assert!(
+        d.findings
+            .iter()
+            .any(|f| f.contains("repeats per configuration")),
+        "{:?}",
+        d.findings
+    );
+}
