@@ -367,6 +367,14 @@ pub fn discover(
         let score_of = |scores: &[(Score, usize)], ci: usize| {
             scores.iter().position(|(_, c)| *c == ci).unwrap_or(0)
         };
+        let significant =
+            |sc: &Score| sc.p_adjusted < opts.alpha && sc.delta_bic > opts.min_delta_bic;
+        let record_heldout = |sc: &mut Score, test: &Paired, gap_mm: f64| {
+            sc.heldout_gain = Some(test.mean * base_costs.len() as f64);
+            sc.paired_t = Some(test.t);
+            sc.sign_p = Some(test.sign_p);
+            sc.heldout_gap_mm = Some(gap_mm);
+        };
         let mut accepted: Option<usize> = None;
         let mut choice: Option<String> = None;
         let mut sets: Option<Vec<Vec<usize>>> = None;
@@ -393,11 +401,8 @@ pub fn discover(
             if accepted.is_some() {
                 continue;
             }
-            let (test, gap_c, _) = heldout_test(ci);
-            s.heldout_gain = Some(test.mean * base_costs.len() as f64);
-            s.paired_t = Some(test.t);
-            s.sign_p = Some(test.sign_p);
-            s.heldout_gap_mm = Some(gap_c);
+            let (test, gap_c, costs_c) = heldout_test(ci);
+            record_heldout(s, &test, gap_c);
             if !test.pass {
                 s.note = format!(
                     "held-out gain not significant: paired t = {:.2} ≤ {:.2}, {} of {} held-out configurations better (sign-test p = {:.1e})",
@@ -459,37 +464,35 @@ pub fn discover(
             }
             // Within the look-alikes that pass too: told apart by the held-out data, else by
             // physical plausibility (a harmonic drive's spring before a cast link's bending).
-            let mut pick = ci;
-            let members: Vec<usize> = group
-                .iter()
-                .copied()
-                .filter(|&o| {
-                    let sc = &scores[score_of(&scores, o)].0;
-                    sc.p_adjusted < opts.alpha && sc.delta_bic > opts.min_delta_bic
-                })
-                .filter(|&o| o == ci || heldout_test(o).0.pass)
-                .collect();
+            // Each member's held-out comparison, computed once: (candidate, test, gap, costs).
+            let mut members = vec![(ci, test, gap_c, costs_c)];
+            for &o in group.iter().skip(1) {
+                if significant(&scores[score_of(&scores, o)].0) {
+                    let (t, g, c) = heldout_test(o);
+                    if t.pass {
+                        members.push((o, t, g, c));
+                    }
+                }
+            }
+            let mut pick = 0;
             if members.len() > 1 {
-                let best_heldout = *members
+                let best_heldout = (0..members.len())
+                    .max_by(|&x, &y| members[x].1.mean.total_cmp(&members[y].1.mean))
+                    .unwrap_or(0);
+                let plausible = (0..members.len())
+                    .min_by_key(|&k| cands[members[k].0].kind.plausibility())
+                    .unwrap_or(0);
+                let d: Vec<f64> = members[plausible]
+                    .3
                     .iter()
-                    .max_by(|&&x, &&y| heldout_test(x).0.mean.total_cmp(&heldout_test(y).0.mean))
-                    .unwrap_or(&ci);
-                let plausible = *members
-                    .iter()
-                    .min_by_key(|&&o| cands[o].kind.plausibility())
-                    .unwrap_or(&ci);
-                let (_, _, cost_best) = heldout_test(best_heldout);
-                let (_, _, cost_plaus) = heldout_test(plausible);
-                let d: Vec<f64> = cost_plaus
-                    .iter()
-                    .zip(&cost_best)
+                    .zip(&members[best_heldout].3)
                     .map(|(p, b)| p - b)
                     .collect();
                 let apart = Paired::new(&d, opts.alpha);
-                let others: Vec<String> = members
-                    .iter()
-                    .filter(|&&o| o != best_heldout && o != plausible)
-                    .map(|&o| cands[o].label())
+                let label_of = |k: usize| cands[members[k].0].label();
+                let others: Vec<String> = (0..members.len())
+                    .filter(|&k| k != best_heldout && k != plausible)
+                    .map(label_of)
                     .collect();
                 let rest = if others.is_empty() {
                     String::new()
@@ -500,14 +503,14 @@ pub fn discover(
                     pick = best_heldout;
                     choice = Some(format!(
                         "{} chosen among its look-alikes: the best held-out gain and the most plausible{rest}",
-                        cands[pick].label()
+                        label_of(pick)
                     ));
                 } else if apart.pass {
                     pick = best_heldout;
                     choice = Some(format!(
                         "{} chosen over its look-alike {}: the held-out data tell them apart (paired t = {:.2}, {} of {} held-out configurations better){rest}",
-                        cands[pick].label(),
-                        cands[plausible].label(),
+                        label_of(pick),
+                        label_of(plausible),
                         apart.t,
                         apart.better,
                         d.len()
@@ -516,22 +519,19 @@ pub fn discover(
                     pick = plausible;
                     choice = Some(format!(
                         "{} chosen over its look-alike {}: the held-out data cannot tell them apart (paired t = {:.2}), so the physically more plausible one ({}){rest}",
-                        cands[pick].label(),
-                        cands[best_heldout].label(),
+                        label_of(pick),
+                        label_of(best_heldout),
                         apart.t,
-                        cands[pick].kind.plausibility_reason()
+                        cands[members[pick].0].kind.plausibility_reason()
                     ));
                 }
             }
+            let (pick, ref t_pick, g_pick, _) = members[pick];
             accepted = Some(pick);
             let pi = score_of(&scores, pick);
             if pi != idx {
-                let (t2, g2, _) = heldout_test(pick);
                 let sc = &mut scores[pi].0;
-                sc.heldout_gain = Some(t2.mean * base_costs.len() as f64);
-                sc.paired_t = Some(t2.t);
-                sc.sign_p = Some(t2.sign_p);
-                sc.heldout_gap_mm = Some(g2);
+                record_heldout(sc, t_pick, g_pick);
                 sc.stability = Some(st);
                 scores[idx].0.note =
                     format!("a look-alike of {}, which was taken", cands[pick].label());
