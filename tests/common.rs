@@ -116,3 +116,15 @@ pub fn realtime_lock() -> std::sync::RwLockWriteGuard<'static, ()> {
 pub fn busy_lock() -> std::sync::RwLockReadGuard<'static, ()> {
     REALTIME.read().unwrap_or_else(|p| p.into_inner())
 }
+
+/// The joints (1-based, ascending) on which `d` named a linear spring.
+pub fn spring_joints(d: &pa10::discover::Discovery) -> Vec<usize> {
+    let mut j: Vec<usize> = d
+        .effects
+        .iter()
+        .filter(|e| e.name == "joint_compliance_linear")
+        .filter_map(|e| e.joint)
+        .collect();
+    j.sort_unstable();
+    j
+}

@@ -278,13 +278,7 @@ fn discovery_from_the_nominal_model_finds_the_papers_springs() {
     let set = generate(&Spec::paper(16, families()[0]));
     let (cal, _) = load(&set, "nominal");
     let d = discover(&Model::nominal(), &cal, None, &DiscoverOptions::default()).unwrap();
-    let mut springs: Vec<usize> = d
-        .effects
-        .iter()
-        .filter(|e| e.name == "joint_compliance_linear")
-        .filter_map(|e| e.joint)
-        .collect();
-    springs.sort_unstable();
+    let springs = crate::common::spring_joints(&d);
     assert_eq!(
         springs,
         vec![2, 3, 5],

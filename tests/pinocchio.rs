@@ -173,13 +173,7 @@ fn from_the_nominal_model_the_springs_are_found_together() {
     let _cpu = crate::common::busy_lock();
     let c = generate("nominal", &["--seed", "8", "--hidden", "none"]);
     let d = discovered(&c, &Model::nominal());
-    let mut springs: Vec<usize> = d
-        .effects
-        .iter()
-        .filter(|e| e.name == "joint_compliance_linear")
-        .filter_map(|e| e.joint)
-        .collect();
-    springs.sort_unstable();
+    let springs = crate::common::spring_joints(&d);
     assert_eq!(springs, vec![2, 3, 5], "{:?}", labels(&d));
     assert!(d.effects.iter().all(|e| matches!(e.joint, Some(2 | 3 | 5))));
     assert!(d.gap_closed, "{}", d.verdict);

@@ -846,8 +846,31 @@ pub fn discover(
         &lay.folds,
         noise.repeatable_used_rad,
     );
+    // A repeatable component far above the resolver's specification is a finding, never a
+    // weight (the weights use at most the specification); still there at the final model,
+    // it keeps the gap open.
+    let spec_rad = lay.resolver_arcmin * crate::accuracy::ARCMIN;
+    let excess = |n: &NoiseReport| {
+        n.model.repeatable_p < opts.alpha
+            && n.model.repeatable_rad.lo > REPEATABLE_EXCESS * spec_rad
+    };
+    let findings: Vec<String> = [("the starting model", &noise0), ("the final model", &noise)]
+        .into_iter()
+        .filter(|(_, n)| excess(n))
+        .map(|(when, n)| {
+            let r = &n.model.repeatable_rad;
+            format!(
+                "at {when} the configurations' mean residuals repeat like a resolver error of {:.2} arcmin (95 % interval from {:.2}), {:.1}× the resolver's specified {:.2} arcmin: the model misses something that repeats per configuration (weights and floor use at most the specification)",
+                r.value / crate::accuracy::ARCMIN,
+                r.lo / crate::accuracy::ARCMIN,
+                r.value / spec_rad,
+                lay.resolver_arcmin
+            )
+        })
+        .collect();
     let fits = lof.p_value >= opts.alpha;
-    let gap_closed = fits && gap <= GAP_CLOSED * floor;
+    let within_floor = gap <= GAP_CLOSED * floor;
+    let gap_closed = fits && within_floor && !excess(&noise);
     let verdict = if found.is_empty() && gap_closed {
         "nothing significant is missing: the model fits to the noise floor".to_string()
     } else if gap_closed {
@@ -856,7 +879,9 @@ pub fn discover(
             gap / floor
         )
     } else {
-        let why = if fits {
+        let why = if fits && within_floor {
+            "the configurations still show a repeatable error far above the resolver's specification: the model misses something that repeats per configuration".to_string()
+        } else if fits {
             format!(
                 "the lack of fit is no longer significant, but the held-out error is still {:.2}× the noise floor (more than {GAP_CLOSED}×): the held-out data differ from the training data in a way the model does not capture (e.g. loads or configurations outside the training range)",
                 gap / floor
@@ -881,29 +906,6 @@ pub fn discover(
     let held_out: Vec<String> = (0..held.dirs.len())
         .map(|k| held.describe(k, slot_name))
         .collect();
-    // A repeatable component far above the resolver's specification is a finding, never a
-    // weight (the weights use at most the specification).
-    let mut findings = Vec::new();
-    let spec_rad = lay.resolver_arcmin * crate::accuracy::ARCMIN;
-    for (when, n) in [("the starting model", &noise0), ("the final model", &noise)] {
-        let r = &n.model.repeatable_rad;
-        if n.model.repeatable_p < opts.alpha && r.lo > REPEATABLE_EXCESS * spec_rad {
-            findings.push(format!(
-                "at {when} the configurations' mean residuals repeat like a resolver error of {:.2} arcmin (95 % interval from {:.2}), {:.1}× the resolver's specified {:.2} arcmin: the model misses something that repeats per configuration (weights and floor use at most the specification)",
-                r.value / crate::accuracy::ARCMIN,
-                r.lo / crate::accuracy::ARCMIN,
-                r.value / spec_rad,
-                lay.resolver_arcmin
-            ));
-        }
-    }
-    let excess_at_end = findings.iter().any(|f| f.starts_with("at the final"));
-    let gap_closed = gap_closed && !excess_at_end;
-    let verdict = if excess_at_end && !verdict.starts_with("the gap is NOT closed") {
-        "the gap is NOT closed: the configurations still show a repeatable error far above the resolver's specification: the model misses something that repeats per configuration".to_string()
-    } else {
-        verdict
-    };
     Ok(Discovery {
         significant_gap_before: significant,
         gap_closed,
