@@ -464,74 +464,34 @@ pub fn discover(
             }
             // Within the look-alikes that pass too: told apart by the held-out data, else by
             // physical plausibility (a harmonic drive's spring before a cast link's bending).
-            // Each member's held-out comparison, computed once: (candidate, test, gap, costs).
-            let mut members = vec![(ci, test, gap_c, costs_c)];
+            // Each member's held-out comparison, computed once.
+            let mut members = vec![Member {
+                cand: ci,
+                test,
+                gap_mm: gap_c,
+                costs: costs_c,
+            }];
             for &o in group.iter().skip(1) {
                 if significant(&scores[score_of(&scores, o)].0) {
-                    let (t, g, c) = heldout_test(o);
-                    if t.pass {
-                        members.push((o, t, g, c));
+                    let (test, gap_mm, costs) = heldout_test(o);
+                    if test.pass {
+                        members.push(Member {
+                            cand: o,
+                            test,
+                            gap_mm,
+                            costs,
+                        });
                     }
                 }
             }
-            let mut pick = 0;
-            if members.len() > 1 {
-                let best_heldout = (0..members.len())
-                    .max_by(|&x, &y| members[x].1.mean.total_cmp(&members[y].1.mean))
-                    .unwrap_or(0);
-                let plausible = (0..members.len())
-                    .min_by_key(|&k| cands[members[k].0].kind.plausibility())
-                    .unwrap_or(0);
-                let d: Vec<f64> = members[plausible]
-                    .3
-                    .iter()
-                    .zip(&members[best_heldout].3)
-                    .map(|(p, b)| p - b)
-                    .collect();
-                let apart = Paired::new(&d, opts.alpha);
-                let label_of = |k: usize| cands[members[k].0].label();
-                let others: Vec<String> = (0..members.len())
-                    .filter(|&k| k != best_heldout && k != plausible)
-                    .map(label_of)
-                    .collect();
-                let rest = if others.is_empty() {
-                    String::new()
-                } else {
-                    format!(" (also alike: {})", others.join(", "))
-                };
-                if best_heldout == plausible {
-                    pick = best_heldout;
-                    choice = Some(format!(
-                        "{} chosen among its look-alikes: the best held-out gain and the most plausible{rest}",
-                        label_of(pick)
-                    ));
-                } else if apart.pass {
-                    pick = best_heldout;
-                    choice = Some(format!(
-                        "{} chosen over its look-alike {}: the held-out data tell them apart (paired t = {:.2}, {} of {} held-out configurations better){rest}",
-                        label_of(pick),
-                        label_of(plausible),
-                        apart.t,
-                        apart.better,
-                        d.len()
-                    ));
-                } else {
-                    pick = plausible;
-                    choice = Some(format!(
-                        "{} chosen over its look-alike {}: the held-out data cannot tell them apart (paired t = {:.2}), so the physically more plausible one ({}){rest}",
-                        label_of(pick),
-                        label_of(best_heldout),
-                        apart.t,
-                        cands[members[pick].0].kind.plausibility_reason()
-                    ));
-                }
-            }
-            let (pick, ref t_pick, g_pick, _) = members[pick];
+            let (k, why) = choose_look_alike(&members, &cands, opts.alpha);
+            choice = why;
+            let pick = members[k].cand;
             accepted = Some(pick);
             let pi = score_of(&scores, pick);
             if pi != idx {
                 let sc = &mut scores[pi].0;
-                record_heldout(sc, t_pick, g_pick);
+                record_heldout(sc, &members[k].test, members[k].gap_mm);
                 sc.stability = Some(st);
                 scores[idx].0.note =
                     format!("a look-alike of {}, which was taken", cands[pick].label());
