@@ -83,8 +83,9 @@ pub struct Score {
     pub heldout_gain: Option<f64>,
     /// Paired t statistic over held-out configurations, when evaluated.
     pub paired_t: Option<f64>,
-    /// One-sided sign-test p-value of "held-out configurations fit better", when evaluated.
-    pub sign_p: Option<f64>,
+    /// One-sided Wilcoxon signed-rank p-value of "held-out configurations fit better" (their
+    /// whitened cost drops), when evaluated.
+    pub rank_p: Option<f64>,
     /// Held-out RMS position error with the effect, mm, when evaluated.
     pub heldout_gap_mm: Option<f64>,
     /// Share of bootstrap resamples by configuration in which it is the best candidate,

@@ -54,6 +54,18 @@ pub(super) fn lack_of_fit(p: &Problem, lin: &Linearization) -> (LackOfFit, DMatr
     (lof, a)
 }
 
+/// The denominator degrees of freedom of the candidates' F tests: the pure error's, or
+/// infinite (a χ² test) when the noise could not be measured and is assumed known from the
+/// specification — a pure-error estimate from a handful of repeats would make every test
+/// powerless, and none at all is no estimate.
+pub(super) fn test_dof(p: &Problem, raw: &[Vector6<f64>], noise: &NoiseReport) -> f64 {
+    if noise.model.structure == crate::noise::Structure::Assumed {
+        f64::INFINITY
+    } else {
+        p.pure_error(raw).1.max(1) as f64
+    }
+}
+
 /// The linearised drop of the whitened cost when the columns `r` join the first `nb` (whose
 /// normal matrix inverse is `a_bb_inv`), counted over the directions with more than
 /// [`IDENT_CUT`] of their column left after projecting out the first `nb`: (those
@@ -402,14 +414,14 @@ pub(super) fn heldout(
 }
 
 /// The held-out comparison of two models over held-out configurations (`d`: per
-/// configuration cost drop): a one-sided paired t-test and a sign test, each at α/2
-/// (Bonferroni), and a positive mean gain.
+/// configuration cost drop): a one-sided paired t-test and a Wilcoxon signed-rank test,
+/// each at α/2 (Bonferroni), and a positive mean gain.
 pub(super) struct Paired {
     pub(super) mean: f64,
     pub(super) t: f64,
     pub(super) t_crit: f64,
     pub(super) better: usize,
-    pub(super) sign_p: f64,
+    pub(super) rank_p: f64,
     pub(super) pass: bool,
 }
 
@@ -423,17 +435,18 @@ impl Paired {
         } else {
             0.0
         };
-        // The sign test cannot be fooled by heavy-tailed per-configuration gains.
         let t_crit = stats::t_quantile(1.0 - 0.5 * alpha, (n - 1.0).max(1.0));
         let better = d.iter().filter(|x| **x > 0.0).count();
-        let sign_p = stats::sign_test(better, d.len());
+        // Ranks cannot be fooled by a few heavy-tailed per-configuration gains, and use
+        // their sizes where a sign test would count only their signs.
+        let rank_p = stats::signed_rank_test(d);
         Self {
             mean,
             t,
             t_crit,
             better,
-            sign_p,
-            pass: mean > 0.0 && (t > t_crit || sign_p < 0.5 * alpha),
+            rank_p,
+            pass: mean > 0.0 && (t > t_crit || rank_p < 0.5 * alpha),
         }
     }
 }
@@ -466,8 +479,12 @@ pub(super) fn choose_look_alike(
     let best = (0..members.len())
         .max_by(|&x, &y| members[x].test.mean.total_cmp(&members[y].test.mean))
         .unwrap_or(0);
+    // The most plausible kind; among equally plausible ones the fewest parameters.
     let plausible = (0..members.len())
-        .min_by_key(|&k| cands[members[k].cand].kind.plausibility())
+        .min_by_key(|&k| {
+            let e = &cands[members[k].cand];
+            (e.kind.plausibility(), e.slots().len())
+        })
         .unwrap_or(0);
     let d: Vec<f64> = members[plausible]
         .costs
@@ -503,12 +520,24 @@ pub(super) fn choose_look_alike(
         );
         (best, Some(why))
     } else {
+        let (p, b) = (&cands[members[plausible].cand], &cands[members[best].cand]);
+        let reason = if p.kind.plausibility() < b.kind.plausibility() {
+            format!(
+                "the physically more plausible one ({})",
+                p.kind.plausibility_reason()
+            )
+        } else {
+            format!(
+                "the one with fewer parameters ({} against {})",
+                p.slots().len(),
+                b.slots().len()
+            )
+        };
         let why = format!(
-            "{} chosen over its look-alike {}: the held-out data cannot tell them apart (paired t = {:.2}), so the physically more plausible one ({}){rest}",
+            "{} chosen over its look-alike {}: the held-out data cannot tell them apart (paired t = {:.2}), so {reason}{rest}",
             label(plausible),
             label(best),
             apart.t,
-            cands[members[plausible].cand].kind.plausibility_reason()
         );
         (plausible, Some(why))
     }
