@@ -297,6 +297,133 @@ def rotvec(v):
     return pin.exp3(np.asarray(v, dtype=float))
 
 
+def pose6(t, ref):
+    """Position and rotation vector of pose t relative to ref (base frame), 6-vector."""
+    return np.concatenate([t[:3, 3] - ref[:3, 3], pin.log3(t[:3, :3] @ ref[:3, :3].T)])
+
+
+def noncentrality(robot, designs, fam):
+    """Each hidden effect's detectability on this campaign, from the generator's truth only:
+    `{effect: [λ for each design]}`, `designs` a list of (configurations, loads, repeats),
+    the first the calibration set. λ is the noncentrality of the likelihood-ratio test for
+    the effect: its signature on a design's cells (the true target with it minus without it,
+    position and orientation, at each configuration and load) whitened by the noise of a
+    cell's mean (the repeatable resolver error a configuration's loads share, reading noise
+    and instrument noise over the repeats, through the manipulator Jacobian), net of what
+    the calibrated model absorbs: least squares on the calibration cells over the Jacobian
+    of the DH table, beta2, the J2/J3/J5 springs and the base frame (finite differences on
+    Pinocchio models), the same fit subtracted on the other designs (what a held-out set
+    sees). Consumes no random numbers: the campaign is the same with or without it."""
+    cells = [(q, load) for cfgs, loads, _ in designs for q in cfgs for load in loads]
+
+    def poses():
+        out = []
+        for q, load in cells:
+            ql, _ = robot.settle(q, load)
+            out.append(robot.target(ql, load))
+        return out
+
+    def rebuild():
+        robot.model = pin.buildModelFromXML(robot.urdf())
+        robot.model.gravity.linear = np.array([0.0, 0.0, -G])
+        robot.data = robot.model.createData()
+        robot.tool_id = robot.model.getFrameId("target", pin.FrameType.BODY)
+
+    ref = poses()
+    original = (robot.model, robot.data, robot.tool_id)
+
+    def column(mutate, h):
+        saved = (list(robot.dh), robot.beta2, dict(robot.springs))
+        mutate()
+        rebuild()
+        col = np.concatenate([pose6(t, r) for t, r in zip(poses(), ref)]) / h
+        robot.dh, robot.beta2, robot.springs = saved
+        robot.model, robot.data, robot.tool_id = original
+        return col
+
+    cols = []
+    for j in range(6):
+        for k in range(4):
+            if j == 1 and k == 2:
+                continue  # d2: parallel joints, beta2 instead
+
+            def bump(j=j, k=k):
+                row = list(robot.dh[j])
+                row[k] += 1e-6
+                robot.dh[j] = tuple(row)
+
+            cols.append(column(bump, 1e-6))
+
+    def bump_beta():
+        robot.beta2 += 1e-6
+
+    cols.append(column(bump_beta, 1e-6))
+    for j in SPRINGS:
+        for k in (0, 1):
+            k1, k3 = robot.springs[j]
+            h = 1e-3 * (k1, max(k3, 1e5))[k]
+
+            def bump_spring(j=j, k=k, h=h):
+                k1, k3 = robot.springs[j]
+                robot.springs[j] = (k1 + h, k3) if k == 0 else (k1, k3 + h)
+
+            cols.append(column(bump_spring, h))
+    # The base frame: a translation and a small rotation of every target about the origin.
+    for k in range(6):
+        col = []
+        for t in ref:
+            v = np.zeros(6)
+            if k < 3:
+                v[k] = 1.0
+            else:
+                w = np.zeros(3)
+                w[k - 3] = 1.0
+                v[:3] = np.cross(w, t[:3, 3])
+                v[3:] = w
+            col.append(v)
+        cols.append(np.concatenate(col))
+    nuisance = np.stack(cols, axis=1)
+    # The noise of a cell's mean, per configuration block (its loads share a repeatable error).
+    inst = np.concatenate([np.array(fam["instrument_m"]) ** 2, np.array(fam["instrument_rad"]) ** 2])
+    blocks = []  # (design index, first row, rows, whitening)
+    row = 0
+    for di, (cfgs, loads, repeats) in enumerate(designs):
+        for _ in cfgs:
+            jacs = []
+            for q, load in cells[row // 6 : row // 6 + len(loads)]:
+                ql, _ = robot.settle(q, load)
+                pin.computeJointJacobians(robot.model, robot.data, ql)
+                pin.framesForwardKinematics(robot.model, robot.data, ql)
+                jacs.append(pin.getFrameJacobian(robot.model, robot.data, robot.tool_id, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED).copy())
+            n = 6 * len(jacs)
+            cov = np.zeros((n, n))
+            for a, ja in enumerate(jacs):
+                for b, jb in enumerate(jacs):
+                    cov[6 * a : 6 * a + 6, 6 * b : 6 * b + 6] = fam["repeatable"] ** 2 * ja @ jb.T
+                cov[6 * a : 6 * a + 6, 6 * a : 6 * a + 6] += (fam["reading"] ** 2 * ja @ ja.T + np.diag(inst)) / repeats
+            blocks.append((di, row, n, np.linalg.inv(np.linalg.cholesky(cov))))
+            row += n
+
+    def white(v, di):
+        return np.concatenate([w @ v[r : r + n] for d, r, n, w in blocks if d == di])
+
+    nw = [np.stack([white(nuisance[:, k], di) for k in range(nuisance.shape[1])], axis=1) for di in range(len(designs))]
+    scale = np.linalg.norm(nw[0], axis=0)
+    scale = np.where(scale > 0, scale, 1.0)
+    out = {}
+    for h in list(robot.hidden):
+        saved_hidden, saved_springs = dict(robot.hidden), dict(robot.springs)
+        del robot.hidden[h]
+        if h == "spring_j4":
+            del robot.springs[4]
+        without = poses()
+        robot.hidden, robot.springs = saved_hidden, saved_springs
+        sig = np.concatenate([pose6(t, r) for t, r in zip(ref, without)])
+        fit, *_ = np.linalg.lstsq(nw[0] / scale, white(sig, 0), rcond=1e-10)
+        out[h] = [float(np.sum((white(sig, di) - nw[di] / scale @ fit) ** 2)) for di in range(len(designs))]
+    return out
+
+
 def generate(seed, hidden=None, family=None, paper=False, configs=None):
     rng = np.random.default_rng([seed, 0x9A10])
     if hidden is None:
@@ -350,7 +477,8 @@ def generate(seed, hidden=None, family=None, paper=False, configs=None):
     val = [HEADER]
     floor, n = 0.0, 0
     s = math.hypot(fam["reading"], fam["repeatable"])
-    for c, q in enumerate(draw_configs(rng, robot, 30, centre, radius)):
+    vcfgs = draw_configs(rng, robot, 30, centre, radius)
+    for c, q in enumerate(vcfgs):
         rep = fam["repeatable"] * rng.standard_normal(6)
         for load in [0.0, 44.0, 90.0]:
             ql, tau = robot.settle(q - rep, load)
@@ -362,6 +490,7 @@ def generate(seed, hidden=None, family=None, paper=False, configs=None):
             e = jp @ (s * rng.standard_normal((6, 200))) + np.array(fam["instrument_m"])[:, None] * rng.standard_normal((3, 200))
             floor += float(np.linalg.norm(e, axis=0).sum())
             n += 200
+    lam = noncentrality(robot, [(cfgs, loads, repeats), (vcfgs, [0.0, 44.0, 90.0], 1)], fam) if hidden else {}
     tq = quat(robot.tool)
     meta = (
         f"instrument: Pinocchio generator (tests/pin), family {fam_name}, seed {seed}\n"
@@ -381,7 +510,7 @@ def generate(seed, hidden=None, family=None, paper=False, configs=None):
             "repeats": repeats,
             "family": fam_name,
         },
-        "hidden": [{"name": h, "in_library": POOL[h][0], **robot.hidden[h]} for h in hidden],
+        "hidden": [{"name": h, "in_library": POOL[h][0], "noncentrality": lam[h][0], "noncentrality_holdout": lam[h][1], **robot.hidden[h]} for h in hidden],
         "val_floor_mm": floor / n * 1e3,
         "springs": {f"J{j}": list(v) for j, v in robot.springs.items()},
         "beta2_rad": robot.beta2,

@@ -30,6 +30,20 @@ import campaign  # noqa: E402
 
 NOMINAL = os.path.join(HERE, "..", "..", "config", "model-nominal.yaml")
 
+# When a campaign can reveal an effect at all (the generator's noncentrality λ, from its
+# truth alone: campaign.noncentrality). The calibration set: a candidate of k <= 2
+# parameters must show Delta-chi2 of about 24 (Bonferroni over ~28 candidates at 1 %, and
+# Delta-BIC > 10 at ln n ~ 7); a noncentral chi2_2(λ) exceeds that in 95 % of campaigns from
+# λ ~ 45. The held-out set: the paired test over its 30 configurations has t ~ sqrt(λ)/2
+# (a configuration's gain has mean λ_i and variance 4 λ_i), above 2.76 in 95 % of campaigns
+# from λ ~ (2 (2.76 + 1.645))^2 ~ 78.
+LAMBDA_CAL = 45.0
+LAMBDA_HOLDOUT = 80.0
+
+
+def revealable(h):
+    return h.get("noncentrality", 0.0) >= LAMBDA_CAL and h.get("noncentrality_holdout", 0.0) >= LAMBDA_HOLDOUT
+
 # What a correct localisation looks like, per hidden effect: the joint and the labels.
 EXPECT = {
     "spring_j4": (4, ("joint_compliance_linear[J4]",)),
@@ -147,14 +161,25 @@ def main():
                 totals["clean: " + k][v] += 1
                 if labels:
                     misses["clean: " + k][v] += 1
-        for h in hidden:
+        for hd in truth["hidden"]:
+            h = hd["name"]
             lib = campaign.POOL[h][0]
             tag = "in" if lib else "out"
             n[f"{tag}"] += 1
             n[f"{tag}_hit"] += hits[h]
+            if revealable(hd):
+                n[f"{tag}_rev"] += 1
+                n[f"{tag}_rev_hit"] += hits[h]
+            elif not hits[h]:
+                # Below what the campaign can reveal: missed, and the verdict?
+                n[f"{tag}_weak_miss"] += 1
+                n[f"{tag}_weak_miss_closed_ok"] += disc["gap_closed"] and ratio <= 1.25
+                n[f"{tag}_weak_miss_admitted"] += not disc["gap_closed"]
             if not lib and not hits[h]:
                 n["out_admitted"] += not disc["gap_closed"]
-            for k, v in keys.items():
+            lam = hd.get("noncentrality", 0.0)
+            reveal = "revealable" if revealable(hd) else ("λ < 45" if lam < LAMBDA_CAL else "held-out λ < 80")
+            for k, v in {**keys, "lambda": reveal}.items():
                 totals[f"{tag}: " + k][v] += 1
                 if not hits[h]:
                     misses[f"{tag}: " + k][v] += 1
@@ -189,8 +214,9 @@ def main():
     print()
     print(f"{a.count} campaigns in {time.time() - t_start:.0f} s; aborts {n['aborts']}; 'gap closed' above 1.25x the floor: {closed_above}")
     print(f"clean campaigns with a false naming: {rate('clean_false', 'clean')} (bar <= 2 %)")
-    print(f"hidden in-library effects named on the right joint: {rate('in_hit', 'in')} (bar >= 95 %)")
-    print(f"hidden effects outside the library localised (joint and form): {rate('out_hit', 'out')} (bar >= 80 %); not localised but admitted (gap not closed): {n['out_admitted']}")
+    print(f"hidden in-library effects named on the right joint: {rate('in_hit', 'in')}; of those the campaign can reveal (λ >= {LAMBDA_CAL:g} calibration, >= {LAMBDA_HOLDOUT:g} held-out): {rate('in_rev_hit', 'in_rev')} (bar >= 95 %)")
+    print(f"  missed below that: {n['in_weak_miss']}, of which 'gap closed' within 1.25x the floor {n['in_weak_miss_closed_ok']}, admitted (not closed) {n['in_weak_miss_admitted']}")
+    print(f"hidden effects outside the library localised (joint and form): {rate('out_hit', 'out')} (bar >= 80 %); not localised but admitted (gap not closed): {n['out_admitted']}; of those the campaign can reveal: {rate('out_rev_hit', 'out_rev')}")
     print(f"campaigns with a hidden effect and a naming elsewhere: {rate('hidden_false', 'hidden_runs')}")
     print(f"from the rigid nominal model, J2/J3/J5 springs and <= 1.3x the floor: {rate('nominal_ok', 'nominal')} (bar >= 95 %)")
     print("\nmisses by campaign design (missed / campaigns):")
@@ -203,7 +229,7 @@ def main():
     hard = n["aborts"] == 0 and closed_above == 0 and 50 * n["clean_false"] <= max(n["clean"], 1)
     bars = (
         hard
-        and (n["in"] == 0 or 100 * n["in_hit"] >= 95 * n["in"])
+        and (n["in_rev"] == 0 or 100 * n["in_rev_hit"] >= 95 * n["in_rev"])
         and (n["out"] == 0 or 100 * n["out_hit"] >= 80 * n["out"])
         and (n["nominal"] == 0 or 100 * n["nominal_ok"] >= 95 * n["nominal"])
     )
