@@ -483,6 +483,10 @@ impl<'a> OuterProblem<'a> {
     }
 }
 
+/// The residual of every row at a trial step outside the model's valid range (whitened or
+/// scaled units: far above any real residual).
+const OUTSIDE: f64 = 1e6;
+
 impl levenberg_marquardt::LeastSquaresProblem<f64, Dyn, Dyn> for OuterProblem<'_> {
     type ResidualStorage = Owned<f64, Dyn>;
     type JacobianStorage = Owned<f64, Dyn, Dyn>;
@@ -500,7 +504,15 @@ impl levenberg_marquardt::LeastSquaresProblem<f64, Dyn, Dyn> for OuterProblem<'_
         self.s.clone()
     }
     fn residuals(&self) -> Option<DVector<f64>> {
-        self.evaluate(false).map(|(r, _)| r)
+        match self.evaluate(false) {
+            Some((r, _)) => Some(r),
+            // A trial step outside the model's valid range (a missing effect dragging a
+            // departure past its bound): a cost far above any the fit has seen, so the
+            // optimiser refuses the step and shrinks its trust region, where `None` would
+            // end the whole fit.
+            None if self.model.is_none() => Some(DVector::from_element(self.n_res(), OUTSIDE)),
+            None => None,
+        }
     }
     fn jacobian(&self) -> Option<DMatrix<f64>> {
         self.evaluate(true).and_then(|(_, j)| j)

@@ -21,6 +21,7 @@ mod fit;
 mod layout;
 mod report;
 mod scoring;
+mod verdict;
 mod weights;
 
 use layout::*;
@@ -841,59 +842,12 @@ pub fn discover(
     let mut g_unused = DVector::zeros(slots.len());
     prior_of(&slots).add_to(&slots, &cur.state, &mut a, &mut g_unused, true);
     let cov = fit::pinv(&a) * lof.between.ratio.min(lof.within.ratio).max(1.0);
-    let effects_out: Vec<Found> = found
-        .iter()
-        .map(|(e, gain)| {
-            let specs = e.params(lay.per_kelvin);
-            let mut params = BTreeMap::new();
-            let mut stderr = BTreeMap::new();
-            let mut units = BTreeMap::new();
-            for (sp, sl) in specs.iter().zip(e.slots()) {
-                let idx = slots.iter().position(|&s| s == sl).unwrap_or(0);
-                params.insert(sp.name.clone(), cur.state.get(sl));
-                stderr.insert(
-                    sp.name.clone(),
-                    cov[(idx, idx)].max(0.0).sqrt() * sl.scale(),
-                );
-                units.insert(sp.name.clone(), sp.unit);
-            }
-            Found {
-                name: e.kind.name(),
-                joint: e.joint(),
-                label: e.label(),
-                description: e.kind.description(),
-                params,
-                stderr,
-                units,
-                gain_mm: *gain,
-                run_time: e.run_time(),
-                form: e
-                    .slots()
-                    .first()
-                    .and_then(|&sl| e.generic_form(cur.state.get(sl))),
-            }
-        })
-        .collect();
+    let effects_out = report::found(&found, &slots, &cur.state, &cov, lay.per_kelvin);
     let evidence = found
         .iter()
         .map(|(e, _)| evidence(&prob, &cur.state, e, &raw_before, &cur.lin.raw))
         .collect::<Result<Vec<_>, _>>()?;
-    let mut model_out = cur.state.to_model()?;
-    {
-        let mut d = model_out.data().clone();
-        d.robot = format!("{} + effects found by pa10 discover", model.data().robot);
-        d.discovered = effects_out
-            .iter()
-            .map(|f| EffectRecord {
-                name: f.name.to_string(),
-                joint: f.joint,
-                params: f.params.clone(),
-                stderr: f.stderr.clone(),
-                compensated: f.run_time,
-            })
-            .collect();
-        model_out = Model::new(d)?;
-    }
+    let model_out = report::extended_model(&cur.state, model, &effects_out)?;
     let floor = noise_floor_mm(
         &prob,
         &cur.state,
@@ -902,57 +856,26 @@ pub fn discover(
         noise.repeatable_used_rad,
     );
     // A repeatable component far above the resolver's specification is a finding, never a
-    // weight (the weights use at most the specification); still there at the final model,
-    // it keeps the gap open.
+    // weight (the weights use at most the specification).
     let spec_rad = lay.resolver_arcmin * crate::accuracy::ARCMIN;
     let excess = |n: &NoiseReport| {
-        n.model.repeatable_p < opts.alpha
-            && n.model.repeatable_rad.lo > REPEATABLE_EXCESS * spec_rad
+        let r = n.model.repeatable_rad;
+        (n.model.repeatable_p < opts.alpha && r.lo > REPEATABLE_EXCESS * spec_rad).then_some(r)
     };
-    let findings: Vec<String> = [("the starting model", &noise0), ("the final model", &noise)]
-        .into_iter()
-        .filter(|(_, n)| excess(n))
-        .map(|(when, n)| {
-            let r = &n.model.repeatable_rad;
-            format!(
-                "at {when} the configurations' mean residuals repeat like a resolver error of {:.2} arcmin (95 % interval from {:.2}), {:.1}× the resolver's specified {:.2} arcmin: the model misses something that repeats per configuration (weights and floor use at most the specification)",
-                r.value / crate::accuracy::ARCMIN,
-                r.lo / crate::accuracy::ARCMIN,
-                r.value / spec_rad,
-                lay.resolver_arcmin
-            )
-        })
-        .collect();
-    let fits = lof.p_value >= opts.alpha;
-    let within_floor = gap <= GAP_CLOSED * floor;
-    let gap_closed = fits && within_floor && !excess(&noise);
-    let verdict = if found.is_empty() && gap_closed {
-        "nothing significant is missing: the model fits to the noise floor".to_string()
-    } else if gap_closed {
-        format!(
-            "the gap is closed: held-out {gap:.3} mm, {:.2}× the noise floor",
-            gap / floor
-        )
-    } else {
-        let why = if fits && within_floor {
-            "the configurations still show a repeatable error far above the resolver's specification: the model misses something that repeats per configuration".to_string()
-        } else if fits {
-            format!(
-                "the lack of fit is no longer significant, but the held-out error is still {:.2}× the noise floor (more than {GAP_CLOSED}×): the held-out data differ from the training data in a way the model does not capture (e.g. loads or configurations outside the training range)",
-                gap / floor
-            )
-        } else if found.len() >= opts.max_effects {
-            format!(
-                "the lack of fit is still significant after the effect budget ({}) was spent",
-                opts.max_effects
-            )
-        } else if generic {
-            "the lack of fit is still significant and neither the library nor the generic dictionary has a term that passes every test: something is missing that this tool cannot name".to_string()
-        } else {
-            "the lack of fit is still significant and no candidate passes every test".to_string()
-        };
-        format!("the gap is NOT closed: {why}")
-    };
+    let (findings, gap_closed, verdict) = verdict::conclude(&verdict::Ending {
+        found: found.len(),
+        max_effects: opts.max_effects,
+        lack_of_fit_p: lof.p_value,
+        alpha: opts.alpha,
+        gap_mm: gap,
+        floor_mm: floor,
+        generic,
+        excess: [
+            ("the starting model", excess(&noise0)),
+            ("the final model", excess(&noise)),
+        ],
+        resolver_arcmin: lay.resolver_arcmin,
+    });
     let slot_name = |sl: Slot| match sl {
         Slot::Dep(i) => crate::model::param_names()[i].to_string(),
         Slot::Base(k) => format!("base {}", ["x", "y", "z", "rx", "ry", "rz"][k]),

@@ -286,3 +286,69 @@ pub(super) fn evidence(
         points,
     })
 }
+
+/// The effects found, with their parameters at `state` and standard errors from `cov` (the
+/// covariance over `slots`, in the slots' scale units), and the held-out gain each brought.
+pub(super) fn found(
+    found: &[(Effect, f64)],
+    slots: &[Slot],
+    state: &EffectState,
+    cov: &DMatrix<f64>,
+    per_kelvin: bool,
+) -> Vec<Found> {
+    found
+        .iter()
+        .map(|(e, gain)| {
+            let specs = e.params(per_kelvin);
+            let mut params = BTreeMap::new();
+            let mut stderr = BTreeMap::new();
+            let mut units = BTreeMap::new();
+            for (sp, sl) in specs.iter().zip(e.slots()) {
+                let idx = slots.iter().position(|&s| s == sl).unwrap_or(0);
+                params.insert(sp.name.clone(), state.get(sl));
+                stderr.insert(
+                    sp.name.clone(),
+                    cov[(idx, idx)].max(0.0).sqrt() * sl.scale(),
+                );
+                units.insert(sp.name.clone(), sp.unit);
+            }
+            Found {
+                name: e.kind.name(),
+                joint: e.joint(),
+                label: e.label(),
+                description: e.kind.description(),
+                params,
+                stderr,
+                units,
+                gain_mm: *gain,
+                run_time: e.run_time(),
+                form: e
+                    .slots()
+                    .first()
+                    .and_then(|&sl| e.generic_form(state.get(sl))),
+            }
+        })
+        .collect()
+}
+
+/// The extended model file: `state`'s model, named after `start`'s robot, with the effects
+/// found recorded (what `pa10d` compensates, with its standard errors).
+pub(super) fn extended_model(
+    state: &EffectState,
+    start: &Model,
+    effects: &[Found],
+) -> Result<Model, DiscoverError> {
+    let mut d = state.to_model()?.data().clone();
+    d.robot = format!("{} + effects found by pa10 discover", start.data().robot);
+    d.discovered = effects
+        .iter()
+        .map(|f| EffectRecord {
+            name: f.name.to_string(),
+            joint: f.joint,
+            params: f.params.clone(),
+            stderr: f.stderr.clone(),
+            compensated: f.run_time,
+        })
+        .collect();
+    Ok(Model::new(d)?)
+}

@@ -131,7 +131,7 @@ def main():
         campaign.write(d, cal, val, meta, truth, urdf)
         keys = design_keys(truth)
         hidden = [h["name"] for h in truth["hidden"]]
-        out = {"seed": seed, "hidden": hidden, "design": truth["design"]}
+        out = {"seed": seed, "hidden": hidden, "design": truth["design"], "truth": truth["hidden"]}
         p, t_cal = run([a.pa10, "calibrate", "--data", os.path.join(d, "cal.csv"), "--out", os.path.join(d, "calibrated.yaml")])
         if p.returncode != 0:
             n["aborts"] += 1
