@@ -248,6 +248,7 @@ fn a_revealable_j3_transmission_error_is_named_on_j3() {
             "reading",
             "--configs",
             "40",
+            "--detectability",
         ],
     );
     let lam = c.truth["hidden"][0]["noncentrality"]

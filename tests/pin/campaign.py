@@ -17,12 +17,13 @@ and torque noise; 0, 1 or 2 hidden effects from a pool in the discovery library 
 outside it.
 
     python3 tests/pin/campaign.py --seed 7 --out DIR [--hidden none|spring_j4,scale_j3] \
-        [--family reading|repeatable|both] [--configs N] [--paper]
+        [--family reading|repeatable|both] [--configs N] [--paper] [--detectability]
 
 writes DIR/cal.csv, DIR/val.csv (held-out configurations at 0/44/90 N, one measurement
 each), their sidecars (`*.meta.yaml`: tool, noise), DIR/robot.urdf and DIR/truth.json (the
 design, the hidden effects and the validation floor: what the judge scores against; the
-tool under test never reads it). `--paper` keeps the design of the seed paper's campaign
+tool under test never reads it; with `--detectability` also each hidden effect's
+noncentrality on the calibration and held-out sets, `noncentrality()`). `--paper` keeps the design of the seed paper's campaign
 (27 configurations x 0/22/44 N x 10 repeats, a 0.35 m tool) and still draws the robot,
 the instrument and the noise.
 """
@@ -424,7 +425,7 @@ def noncentrality(robot, designs, fam):
     return out
 
 
-def generate(seed, hidden=None, family=None, paper=False, configs=None):
+def generate(seed, hidden=None, family=None, paper=False, configs=None, detectability=False):
     rng = np.random.default_rng([seed, 0x9A10])
     if hidden is None:
         k = rng.choice([0, 1, 2], p=[0.34, 0.33, 0.33])
@@ -490,7 +491,7 @@ def generate(seed, hidden=None, family=None, paper=False, configs=None):
             e = jp @ (s * rng.standard_normal((6, 200))) + np.array(fam["instrument_m"])[:, None] * rng.standard_normal((3, 200))
             floor += float(np.linalg.norm(e, axis=0).sum())
             n += 200
-    lam = noncentrality(robot, [(cfgs, loads, repeats), (vcfgs, [0.0, 44.0, 90.0], 1)], fam) if hidden else {}
+    lam = noncentrality(robot, [(cfgs, loads, repeats), (vcfgs, [0.0, 44.0, 90.0], 1)], fam) if hidden and detectability else {}
     tq = quat(robot.tool)
     meta = (
         f"instrument: Pinocchio generator (tests/pin), family {fam_name}, seed {seed}\n"
@@ -510,7 +511,7 @@ def generate(seed, hidden=None, family=None, paper=False, configs=None):
             "repeats": repeats,
             "family": fam_name,
         },
-        "hidden": [{"name": h, "in_library": POOL[h][0], "noncentrality": lam[h][0], "noncentrality_holdout": lam[h][1], **robot.hidden[h]} for h in hidden],
+        "hidden": [{"name": h, "in_library": POOL[h][0], **({"noncentrality": lam[h][0], "noncentrality_holdout": lam[h][1]} if h in lam else {}), **robot.hidden[h]} for h in hidden],
         "val_floor_mm": floor / n * 1e3,
         "springs": {f"J{j}": list(v) for j, v in robot.springs.items()},
         "beta2_rad": robot.beta2,
@@ -541,6 +542,7 @@ def main():
     ap.add_argument("--family", choices=sorted(FAMILIES))
     ap.add_argument("--paper", action="store_true", help="the seed paper's campaign design")
     ap.add_argument("--configs", type=int, help="number of calibration configurations")
+    ap.add_argument("--detectability", action="store_true", help="write each hidden effect's noncentrality (truth.json; a few seconds)")
     a = ap.parse_args()
     hidden = None
     if a.hidden is not None:
@@ -550,7 +552,7 @@ def main():
                 sys.exit(f"unknown hidden effect {h!r}; known: {', '.join(sorted(POOL))}")
     for seed in range(a.seed, a.seed + a.count):
         out = a.out if a.count == 1 else os.path.join(a.out, str(seed))
-        write(out, *generate(seed, hidden, a.family, a.paper, a.configs))
+        write(out, *generate(seed, hidden, a.family, a.paper, a.configs, a.detectability))
 
 
 if __name__ == "__main__":

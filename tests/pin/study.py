@@ -127,7 +127,7 @@ def main():
     clean_seen = 0
     for seed in range(a.first, a.first + a.count):
         d = os.path.join(root, str(seed))
-        cal, val, meta, truth, urdf = campaign.generate(seed)
+        cal, val, meta, truth, urdf = campaign.generate(seed, detectability=True)
         campaign.write(d, cal, val, meta, truth, urdf)
         keys = design_keys(truth)
         hidden = [h["name"] for h in truth["hidden"]]
