@@ -122,7 +122,7 @@ pub const REPEATABLE_EXCESS: f64 = 2.0;
 
 /// Candidates a step compares again at their nonlinear refit when the linearised held-out
 /// comparison fails (the strongest first).
-const NONLINEAR_RETRIES: usize = 2;
+const NONLINEAR_RETRIES: usize = 1;
 
 /// The slots the given model fits: departures (but the two a free base absorbs), the base
 /// frame, the springs it has, the joint errors it has.
