@@ -483,6 +483,23 @@ impl<'a> OuterProblem<'a> {
     }
 }
 
+/// The repeatable error, in multiples of the resolver's specification, above which a fit is
+/// refused as not explaining the data (a full model leaves a few times the specification, about
+/// 25× with a soft J4 spring missing — which discovery then finds; a wrong tool leaves hundreds).
+const NOT_EXPLAINED: f64 = 100.0;
+
+/// What to say when the dataset has no sidecar (empty when it has one).
+fn sidecar_hint(data: &Dataset) -> &'static str {
+    if data.meta.is_some() {
+        return "";
+    }
+    ". The dataset has no sidecar (<name>.meta.yaml beside the CSV): without it \
+     the tool is the model's (the nominal model's is the flange itself, which \
+     a measured tooling ball is not). The sidecar must give `tool` (flange → measured point: translation m, \
+     quaternion w, x, y, z) and should give `noise` (position_m, \
+     resolver_arcmin) and `instrument`; see docs/calibration.md"
+}
+
 /// The residual of every row at a trial step outside the model's valid range (whitened or
 /// scaled units: far above any real residual).
 const OUTSIDE: f64 = 1e6;
@@ -807,17 +824,8 @@ pub fn calibrate(
                     })
                     .collect();
                 reasons.dedup();
-                let mut msg = format!("no start converged: {}", reasons.join("; "));
-                if data.meta.is_none() {
-                    msg.push_str(
-                        ". The dataset has no sidecar (<name>.meta.yaml beside the CSV): without it \
-                         the tool is the model's (the nominal model's is the flange itself, which \
-                         a measured tooling ball is not). The sidecar must give `tool` (flange → measured point: translation m, \
-                         quaternion w, x, y, z) and should give `noise` (position_m, \
-                         resolver_arcmin) and `instrument`; see docs/calibration.md",
-                    );
-                }
-                CalibError::Failed(msg)
+                let msg = format!("no start converged: {}", reasons.join("; "));
+                CalibError::Failed(msg + sidecar_hint(data))
             })?;
         Ok((s, cost, psi, start_costs))
     };
@@ -876,6 +884,25 @@ pub fn calibrate(
             if settled {
                 break;
             }
+        }
+    }
+
+    // A fit that leaves the configurations repeating an error far beyond the resolver's
+    // specification has not explained the data (a wrong tool, a missing sidecar): refused,
+    // never written as a calibration.
+    if let Some(nm) = &noise_model {
+        let r = nm.repeatable_rad;
+        // (At least 10 arcmin: a sidecar may call the resolvers exact.)
+        let limit = (NOT_EXPLAINED * prior.resolver_rad).max(10.0 * crate::accuracy::ARCMIN);
+        if nm.structure.shares_offsets() && r.lo > limit {
+            return Err(CalibError::Data(format!(
+                "the fit does not explain the data: the configurations repeat an error of {:.1} arcmin (95 % interval from {:.1}), {:.0}× the resolver's specified {:.2} arcmin{}",
+                r.value / crate::accuracy::ARCMIN,
+                r.lo / crate::accuracy::ARCMIN,
+                r.value / prior.resolver_rad,
+                prior.resolver_rad / crate::accuracy::ARCMIN,
+                sidecar_hint(data)
+            )));
         }
     }
 
