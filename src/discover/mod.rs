@@ -376,18 +376,13 @@ pub fn discover(
         let nonlinear_test = |ci: usize| -> Option<(Paired, f64, Vec<f64>)> {
             let mut with = slots.clone();
             with.extend(cands[ci].slots());
-            let pr = prior_of(&with);
-            let fitted = fit::fit_balanced(&mut prob.clone(), &cur.state, &with, &pr).ok()?;
-            let lin_c = fit::linearise(&prob, &fitted.state, &with).ok()?;
-            let eqs_c = fold_eqs(&prob, &lin_c, &lay.folds, lay.holdout).with_prior(
-                &pr,
-                &with,
-                &fitted.state,
-            );
-            let cols: Vec<usize> = (0..with.len()).collect();
-            let (costs, gap_c) = heldout(&prob, &lin_c, &eqs_c, &lay.folds, &cols);
-            let d: Vec<f64> = base_costs.iter().zip(&costs).map(|(a, b)| a - b).collect();
-            Some((Paired::new(&d, opts.alpha), gap_c, costs))
+            let (costs, gap_c) =
+                refit_heldout(&prob, &cur.state, &with, &prior_of(&with), &lay).ok()?;
+            Some((
+                Paired::new(&drops(&base_costs, &costs), opts.alpha),
+                gap_c,
+                costs,
+            ))
         };
         // At most NONLINEAR_RETRIES a step, for the strongest candidates (visited by ΔBIC):
         // each is a full refit.
@@ -515,11 +510,7 @@ pub fn discover(
             for &o in group.iter().skip(1) {
                 if significant(&scores[score_of(&scores, o)].0) {
                     let (test, gap_mm, costs) = compare(o);
-                    let worse: Vec<f64> = costs
-                        .iter()
-                        .zip(&members[0].costs)
-                        .map(|(m, l)| m - l)
-                        .collect();
+                    let worse = drops(&costs, &members[0].costs);
                     if test.pass || !Paired::new(&worse, opts.alpha).pass {
                         members.push(Member {
                             cand: o,
@@ -697,7 +688,8 @@ pub fn discover(
             // not predict held-out configurations better — the others' misfit dominates and
             // moves — while with them it does.
             // (Only asked when it fails alone: two more refits.)
-            let alone = passes_alone(&Paired::new(&d, opts.alpha), g2, g_prev);
+            let test = Paired::new(&d, opts.alpha);
+            let alone = passes_alone(&test, g2, g_prev);
             let among = if alone || companions.is_empty() {
                 None
             } else {
@@ -707,20 +699,15 @@ pub fn discover(
                 }
                 let mut with = without.clone();
                 with.extend(e.slots());
-                let judge = |s: &[Slot], start: &EffectState| -> Result<_, DiscoverError> {
-                    let pr = prior_of(s);
-                    let f = fit::fit_balanced(&mut prob2.clone(), start, s, &pr)?;
-                    let lin = fit::linearise(&prob2, &f.state, s)?;
-                    let eqs = fold_eqs(&prob2, &lin, &lay.folds, lay.holdout)
-                        .with_prior(&pr, s, &f.state);
-                    Ok(heldout(&prob2, &lin, &eqs, &lay.folds, &all_cols(s.len())))
-                };
-                let (c_without, g_without) = judge(&without, &cur.state)?;
-                let (c_with, g_with) = judge(&with, &cur2.state)?;
-                let d: Vec<f64> = c_without.iter().zip(&c_with).map(|(a, b)| a - b).collect();
-                Some((d, g_with, g_without))
+                let (c_without, g_without) =
+                    refit_heldout(&prob2, &cur.state, &without, &prior_of(&without), &lay)?;
+                let (c_with, g_with) =
+                    refit_heldout(&prob2, &cur2.state, &with, &prior_of(&with), &lay)?;
+                Some((drops(&c_without, &c_with), g_with, g_without))
             };
-            Ok((prob2, noise2, cur2, lof2, a_fit2, d, g2, g_prev, among))
+            Ok((
+                prob2, noise2, cur2, lof2, a_fit2, test, alone, g2, g_prev, among,
+            ))
         };
         let label = e.label();
         let outcome = attempt();
@@ -733,7 +720,7 @@ pub fn discover(
                 }
             }
         };
-        let (prob2, noise2, cur2, lof2, a_fit2, d, g2, g_prev, among) = match outcome {
+        let (prob2, noise2, cur2, lof2, a_fit2, test, alone, g2, g_prev, among) = match outcome {
             Ok(o) => o,
             Err(err) => {
                 reject(&mut steps, format!("fit failed: {err}; skipped"));
@@ -741,8 +728,6 @@ pub fn discover(
                 continue;
             }
         };
-        let test = Paired::new(&d, opts.alpha);
-        let alone = passes_alone(&test, g2, g_prev);
         let with_others = among
             .as_ref()
             .map(|(d, g_with, g_without)| (Paired::new(d, opts.alpha), *g_with, *g_without));
@@ -766,9 +751,7 @@ pub fn discover(
                 &mut steps,
                 format!(
                     "rejected after the nonlinear refit: held-out RMS {g_prev:.3} → {g2:.3} mm, paired t = {:.2}, {} of {} held-out configurations better{others}",
-                    test.t,
-                    test.better,
-                    d.len()
+                    test.t, test.better, test.n
                 ),
             );
             rejected.push(e);

@@ -367,6 +367,28 @@ pub(super) fn fold_eqs(
     }
 }
 
+/// Per configuration, how much `after` lowers `before` (the held-out cost drops a paired
+/// comparison takes).
+pub(super) fn drops(before: &[f64], after: &[f64]) -> Vec<f64> {
+    before.iter().zip(after).map(|(b, a)| b - a).collect()
+}
+
+/// The model over `slots` (held by `prior`) refitted from `start` on `p`'s weights (`p` itself unchanged),
+/// and its held-out evaluation ([`heldout`]): per held-out configuration cost, RMS mm.
+pub(super) fn refit_heldout(
+    p: &Problem,
+    start: &EffectState,
+    slots: &[Slot],
+    prior: &fit::Prior,
+    lay: &Layout,
+) -> Result<(Vec<f64>, f64), DiscoverError> {
+    let fitted = fit::fit_balanced(&mut p.clone(), start, slots, prior)?;
+    let lin = fit::linearise(p, &fitted.state, slots)?;
+    let eqs = fold_eqs(p, &lin, &lay.folds, lay.holdout).with_prior(prior, slots, &fitted.state);
+    let cols: Vec<usize> = (0..slots.len()).collect();
+    Ok(heldout(p, &lin, &eqs, &lay.folds, &cols))
+}
+
 /// Held-out evaluation of a linearised refit over columns `cols`: per held-out block
 /// whitened cost, and the RMS position error over held-out rows (mm).
 pub(super) fn heldout(
@@ -423,6 +445,8 @@ pub(super) struct Paired {
     pub(super) better: usize,
     pub(super) rank_p: f64,
     pub(super) pass: bool,
+    /// Held-out configurations compared.
+    pub(super) n: usize,
 }
 
 impl Paired {
@@ -447,6 +471,7 @@ impl Paired {
             better,
             rank_p,
             pass: mean > 0.0 && (t > t_crit || rank_p < 0.5 * alpha),
+            n: d.len(),
         }
     }
 }

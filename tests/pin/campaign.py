@@ -152,6 +152,10 @@ class Robot:
                 self.hidden[h] = {"joint": None, "m_per_n": rng.uniform(1.5e-6, 3e-6)}
             else:
                 raise SystemExit(f"unknown hidden effect {h!r}; known: {', '.join(POOL)}")
+        self.build()
+
+    def build(self):
+        """The Pinocchio model of the current DH table, beta2 and tool."""
         self.model = pin.buildModelFromXML(self.urdf())
         self.model.gravity.linear = np.array([0.0, 0.0, -G])
         self.data = self.model.createData()
@@ -324,19 +328,13 @@ def noncentrality(robot, designs, fam):
             out.append(robot.target(ql, load))
         return out
 
-    def rebuild():
-        robot.model = pin.buildModelFromXML(robot.urdf())
-        robot.model.gravity.linear = np.array([0.0, 0.0, -G])
-        robot.data = robot.model.createData()
-        robot.tool_id = robot.model.getFrameId("target", pin.FrameType.BODY)
-
     ref = poses()
     original = (robot.model, robot.data, robot.tool_id)
 
     def column(mutate, h):
         saved = (list(robot.dh), robot.beta2, dict(robot.springs))
         mutate()
-        rebuild()
+        robot.build()
         col = np.concatenate([pose6(t, r) for t, r in zip(poses(), ref)]) / h
         robot.dh, robot.beta2, robot.springs = saved
         robot.model, robot.data, robot.tool_id = original
