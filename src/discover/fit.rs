@@ -211,30 +211,37 @@ pub(crate) fn balanced(p: &Problem, raw: &[Vector6<f64>]) -> (f64, f64) {
 }
 
 /// Levenberg–Marquardt on a [`balanced`] problem, re-balanced at each solution (three
-/// rounds at most) until the dispersions settle below 1.5, when it is the plain
-/// generalised least-squares fit. `p.dispersion` is left at the weights of the solution,
-/// and the result is linearised on them: held-out refits and scores then agree with the
-/// fit (a balanced solution is not an optimum of the original weights, and refitting on
-/// those would walk back into the contorted optimum). Tests of lack of fit reset the
-/// dispersion to 1.
+/// rounds at most) until the dispersions settle below 1.5. `p.dispersion` is left at the
+/// weights of the solution, and the result is linearised on them: held-out refits and
+/// scores then agree with the fit (a balanced solution is not an optimum of the original
+/// weights, and refitting on those would walk back into the contorted optimum). A model that
+/// fits from the start is the plain generalised least-squares fit. Tests of lack of fit
+/// reset the dispersion to 1.
 pub(crate) fn fit_balanced(
     p: &mut Problem,
     state: &EffectState,
     slots: &[Slot],
     prior: &Prior,
 ) -> Result<Fitted, ModelError> {
-    let mut st = state.clone();
     p.dispersion = (1.0, 1.0);
+    let mut last: Option<Fitted> = None;
     for _ in 0..3 {
-        let raw = p.raw(&st)?;
-        let b = balanced(p, &raw);
+        let b = match &last {
+            Some(f) => balanced(p, &f.lin.raw),
+            None => balanced(p, &p.raw(state)?),
+        };
         if b.0 < 1.5 && b.1 < 1.5 {
             break;
         }
         p.dispersion = b;
-        st = fit(p, &st, slots, prior)?.state;
+        let from = last.as_ref().map_or(state, |f| &f.state);
+        last = Some(fit(p, from, slots, prior)?);
     }
-    fit(p, &st, slots, prior)
+    // The last round's fit is on the weights `p` holds: it is the solution.
+    match last {
+        Some(f) => Ok(f),
+        None => fit(p, state, slots, prior),
+    }
 }
 
 /// The whitened training cost plus prior of `state` on `p`'s weights.
@@ -275,12 +282,24 @@ pub(crate) fn linearise(
 ) -> Result<Linearization, ModelError> {
     let geom = state.geometry()?;
     let raw = p.raw_with(state, &geom);
-    let jraw: Vec<Vec<Vector6<f64>>> = slots
+    let jraw = columns(p, state, &geom, &raw, slots)?;
+    Ok(Linearization::whitened(p, raw, jraw))
+}
+
+/// Forward-difference Jacobian columns of `slots` at `state` (whose geometry is `geom` and
+/// raw residuals `raw`), in units of each slot's scale; backward where the forward point
+/// leaves the model's valid space.
+fn columns(
+    p: &Problem,
+    state: &EffectState,
+    geom: &Model,
+    raw: &[Vector6<f64>],
+    slots: &[Slot],
+) -> Result<Vec<Vec<Vector6<f64>>>, ModelError> {
+    slots
         .par_iter()
         .map(|&slot| {
             let h = 1e-3 * slot.scale();
-            // Forward difference, backward when the forward point leaves the valid space.
-            let mut out = None;
             for h in [h, -h] {
                 let mut s = state.clone();
                 s.set(slot, state.get(slot) + h);
@@ -293,62 +312,80 @@ pub(crate) fn linearise(
                     geom.clone()
                 };
                 let r2 = p.raw_with(&s, &g);
-                out = Some(
-                    r2.iter()
-                        .zip(&raw)
-                        .map(|(a, b)| (a - b) * (slot.scale() / h))
-                        .collect(),
-                );
-                break;
+                return Ok(r2
+                    .iter()
+                    .zip(raw)
+                    .map(|(a, b)| (a - b) * (slot.scale() / h))
+                    .collect());
             }
-            out.ok_or_else(|| ModelError::Invalid {
+            Err(ModelError::Invalid {
                 key: format!("{slot:?}"),
                 reason: "no valid finite-difference step".into(),
             })
         })
-        .collect::<Result<_, ModelError>>()?;
-    let mut white = DVector::zeros(p.n_white);
-    p.whiten(&raw, white.as_mut_slice());
-    let mut jwhite = DMatrix::zeros(p.n_white, slots.len());
-    let mut col = vec![0.0; p.n_white];
-    for (k, c) in jraw.iter().enumerate() {
-        p.whiten(c, &mut col);
-        jwhite.column_mut(k).copy_from_slice(&col);
-    }
-    Ok(Linearization {
-        raw,
-        white,
-        jraw,
-        jwhite,
-    })
+        .collect()
 }
 
-/// Normal equations `JᵀJ`, `Jᵀr` over whitened `rows` and columns `cols`.
+impl Linearization {
+    /// Raw residuals and Jacobian columns whitened on `p`'s weights.
+    fn whitened(p: &Problem, raw: Vec<Vector6<f64>>, jraw: Vec<Vec<Vector6<f64>>>) -> Self {
+        let mut white = DVector::zeros(p.n_white);
+        p.whiten(&raw, white.as_mut_slice());
+        let mut jwhite = DMatrix::zeros(p.n_white, jraw.len());
+        let mut col = vec![0.0; p.n_white];
+        for (k, c) in jraw.iter().enumerate() {
+            p.whiten(c, &mut col);
+            jwhite.column_mut(k).copy_from_slice(&col);
+        }
+        Self {
+            raw,
+            white,
+            jraw,
+            jwhite,
+        }
+    }
+
+    /// The same linearisation on the weights of `p`, a problem over the same observations
+    /// (another noise model or dispersion): the raw residuals and Jacobian depend on the
+    /// state and the observations alone, so nothing is evaluated again.
+    pub fn rewhitened(&self, p: &Problem) -> Self {
+        Self::whitened(p, self.raw.clone(), self.jraw.clone())
+    }
+
+    /// This linearisation (of some slots at `state`) with the columns of `more` slots
+    /// appended, whitened on `p`'s weights: only the new columns are evaluated.
+    pub fn extended(
+        &self,
+        p: &Problem,
+        state: &EffectState,
+        more: &[Slot],
+    ) -> Result<Self, ModelError> {
+        let geom = state.geometry()?;
+        let mut jraw = self.jraw.clone();
+        jraw.extend(columns(p, state, &geom, &self.raw, more)?);
+        Ok(Self::whitened(p, self.raw.clone(), jraw))
+    }
+}
+
+/// Normal equations `JᵀJ`, `Jᵀr` over whitened `rows` and columns `cols` (the rows
+/// gathered once, the products by nalgebra's blocked matrix multiply; `JᵀJ` made exactly
+/// symmetric from its upper triangle).
 pub(crate) fn normal_eq(
     lin: &Linearization,
     rows: &[usize],
     cols: &[usize],
 ) -> (DMatrix<f64>, DVector<f64>) {
     let k = cols.len();
-    let mut a = DMatrix::zeros(k, k);
-    let mut g = DVector::zeros(k);
-    let mut jr = vec![0.0; k];
-    for &i in rows {
+    // Jᵀ directly (k × rows): each row of J is a column here, read once.
+    let mut jt = DMatrix::zeros(k, rows.len());
+    for (n, &i) in rows.iter().enumerate() {
         for (c, &col) in cols.iter().enumerate() {
-            jr[c] = lin.jwhite[(i, col)];
-        }
-        let r = lin.white[i];
-        for a_ in 0..k {
-            let x = jr[a_];
-            if x == 0.0 {
-                continue;
-            }
-            g[a_] += x * r;
-            for b_ in a_..k {
-                a[(a_, b_)] += x * jr[b_];
-            }
+            jt[(c, n)] = lin.jwhite[(i, col)];
         }
     }
+    let r = DVector::from_iterator(rows.len(), rows.iter().map(|&i| lin.white[i]));
+    let mut a = &jt * jt.transpose();
+    let g = &jt * r;
     for a_ in 0..k {
         for b_ in 0..a_ {
             a[(a_, b_)] = a[(b_, a_)];

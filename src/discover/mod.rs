@@ -234,7 +234,7 @@ pub fn discover(
     let (mut prob, mut noise) = problem(&lay, &first.state, slots.len())?;
     let mut cur = fit::fit_balanced(&mut prob, &first.state, &slots, &prior_of(&slots))?;
     let noise0 = noise.clone();
-    let (lof0, mut a_fit) = plain_lack_of_fit(&prob, &cur.state, &slots)?;
+    let (lof0, mut a_fit) = plain_lack_of_fit(&prob, &cur);
     let significant = lof0.p_value < opts.alpha;
     // Between-configuration variance is either a repeatable resolver error or an effect of
     // the configuration the model misses; the data alone cannot say which (the estimate
@@ -293,7 +293,8 @@ pub fn discover(
             ranges.push(all.len()..all.len() + s.len());
             all.extend(s);
         }
-        let lin = fit::linearise(&prob, &cur.state, &all)?;
+        // The current fit's columns, and the candidates' evaluated at its state.
+        let lin = cur.lin.extended(&prob, &cur.state, &all[slots.len()..])?;
         let prior_all = prior_of(&all);
         let eqs =
             fold_eqs(&prob, &lin, &lay.folds, lay.holdout).with_prior(&prior_all, &all, &cur.state);
@@ -648,7 +649,7 @@ pub fn discover(
             };
             let (mut prob2, noise2) = problem(&lay, &refit.state, new_slots.len())?;
             let cur2 = fit::fit_balanced(&mut prob2, &refit.state, &new_slots, &pr)?;
-            let (lof2, a_fit2) = plain_lack_of_fit(&prob2, &cur2.state, &new_slots)?;
+            let (lof2, a_fit2) = plain_lack_of_fit(&prob2, &cur2);
             // The refitted model must predict held-out configurations better than the model
             // before it, on the same weights: positive and significant (paired over held-out
             // configurations), whatever the linearised scores said.
@@ -665,7 +666,7 @@ pub fn discover(
                 &lay.folds,
                 &all_cols(new_slots.len()),
             );
-            let lin_prev = fit::linearise(&prob2, &cur.state, &slots)?;
+            let lin_prev = cur.lin.rewhitened(&prob2);
             let eqs_prev = fold_eqs(&prob2, &lin_prev, &lay.folds, lay.holdout).with_prior(
                 &prior_of(&slots),
                 &slots,
@@ -772,7 +773,7 @@ pub fn discover(
     while found.len() > 1 {
         let mut plain = prob.clone();
         plain.dispersion = (1.0, 1.0);
-        let lin = fit::linearise(&plain, &cur.state, &slots)?;
+        let lin = cur.lin.rewhitened(&plain);
         let rows = plain.white_rows(|b| b.train);
         let cols: Vec<usize> = (0..slots.len()).collect();
         let (mut a, mut g_unused) = fit::normal_eq(&lin, &rows, &cols);
@@ -821,7 +822,7 @@ pub fn discover(
         let pr = prior_of(&slots);
         (prob, noise) = problem(&lay, &st, slots.len())?;
         cur = fit::fit_balanced(&mut prob, &st, &slots, &pr)?;
-        (lof, a_fit) = plain_lack_of_fit(&prob, &cur.state, &slots)?;
+        (lof, a_fit) = plain_lack_of_fit(&prob, &cur);
         let eqs =
             fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout).with_prior(&pr, &slots, &cur.state);
         gap = heldout(

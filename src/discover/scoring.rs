@@ -383,7 +383,7 @@ pub(super) fn refit_heldout(
     lay: &Layout,
 ) -> Result<(Vec<f64>, f64), DiscoverError> {
     let fitted = fit::fit_balanced(&mut p.clone(), start, slots, prior)?;
-    let lin = fit::linearise(p, &fitted.state, slots)?;
+    let lin = fitted.lin.rewhitened(p);
     let eqs = fold_eqs(p, &lin, &lay.folds, lay.holdout).with_prior(prior, slots, &fitted.state);
     let cols: Vec<usize> = (0..slots.len()).collect();
     Ok(heldout(p, &lin, &eqs, &lay.folds, &cols))
@@ -568,16 +568,12 @@ pub(super) fn choose_look_alike(
     }
 }
 
-/// The lack-of-fit test on the noise model's own weights (dispersion 1), at `state`.
-pub(super) fn plain_lack_of_fit(
-    p: &Problem,
-    state: &EffectState,
-    slots: &[Slot],
-) -> Result<(LackOfFit, DMatrix<f64>), DiscoverError> {
+/// The lack-of-fit test on the noise model's own weights (dispersion 1), at the fit `at`
+/// (linearised on `p`'s observations).
+pub(super) fn plain_lack_of_fit(p: &Problem, at: &fit::Fitted) -> (LackOfFit, DMatrix<f64>) {
     let mut plain = p.clone();
     plain.dispersion = (1.0, 1.0);
-    let lin = fit::linearise(&plain, state, slots)?;
-    Ok(lack_of_fit(&plain, &lin))
+    lack_of_fit(&plain, &at.lin.rewhitened(&plain))
 }
 
 #[cfg(test)]
