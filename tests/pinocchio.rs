@@ -227,6 +227,60 @@ fn from_the_nominal_model_on_two_loads_and_on_one_repeat() {
     }
 }
 
+/// From the rigid nominal model on a campaign whose training loads stop at 40 N while the
+/// held-out set goes to 90 N (seed 243: 15 configurations x 0/21/40 N x 2 repeats, clean):
+/// the J5 cubic cannot pass the training tests, and the held-out prediction at 90 N needs
+/// it. The completion round takes it on the held-out data (its torques reach beyond the
+/// training's), and the held-out error ends within 1.3x the floor (1.41x without it). The
+/// J2 cubic, whose refit is softening on these data, is refused as not hardening.
+#[test]
+fn from_the_nominal_model_a_spring_is_completed_beyond_the_training_loads() {
+    if !pinocchio() {
+        return;
+    }
+    let _cpu = crate::common::busy_lock();
+    let c = generate("complete243", &["--seed", "243"]);
+    assert_eq!(c.truth["hidden"], serde_json::json!([]));
+    let d = discovered(&c, &Model::nominal());
+    assert_eq!(
+        crate::common::spring_joints(&d),
+        vec![2, 3, 5],
+        "{:?}",
+        labels(&d)
+    );
+    let completed: Vec<&str> = d
+        .steps
+        .iter()
+        .filter(|s| s.completion)
+        .filter_map(|s| s.accepted.as_deref())
+        .collect();
+    assert_eq!(
+        completed,
+        ["joint_compliance_cubic[J5]"],
+        "{:?}",
+        labels(&d)
+    );
+    assert!(labels(&d).contains(&"joint_compliance_cubic[J5]"));
+    let refused = d
+        .steps
+        .iter()
+        .filter(|s| s.completion)
+        .flat_map(|s| &s.candidates)
+        .find(|c| c.label == "joint_compliance_cubic[J2]")
+        .expect("J2 cubic tried");
+    assert!(
+        refused.note.contains("not a hardening spring"),
+        "{}",
+        refused.note
+    );
+    assert!(d.gap_after_mm <= 1.3 * d.noise_floor_mm, "{}", d.verdict);
+    // Without a holdout set (cross-validation by configuration) nothing reaches beyond the
+    // training torques: no completion round.
+    let cv =
+        discover(&Model::nominal(), &c.cal, None, &DiscoverOptions::default()).expect("discover");
+    assert!(cv.steps.iter().all(|s| !s.completion));
+}
+
 /// A J3 transmission error on a campaign that can reveal it (40 configurations; the
 /// generator's noncentrality λ ≈ 99 on the calibration set and ≈ 101 on the held-out set,
 /// above the study's 45 / 80): named on J3. On the study's random designs of 15–40

@@ -16,6 +16,7 @@
 //!
 //! Plain functions on plain data: no IO. The `pa10 discover` command wraps it.
 
+mod complete;
 pub mod effects;
 mod fit;
 mod layout;
@@ -570,6 +571,7 @@ pub fn discover(
             candidates: scores.into_iter().map(|(s, _)| s).collect(),
             accepted: accepted.map(|ci| cands[ci].label()),
             generic,
+            completion: false,
             look_alikes,
             choice,
         };
@@ -819,20 +821,58 @@ pub fn discover(
             st.set(sl, 0.0);
         }
         slots.retain(|sl| !e.slots().contains(sl));
-        let pr = prior_of(&slots);
-        (prob, noise) = problem(&lay, &st, slots.len())?;
-        cur = fit::fit_balanced(&mut prob, &st, &slots, &pr)?;
-        (lof, a_fit) = plain_lack_of_fit(&prob, &cur);
-        let eqs =
-            fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout).with_prior(&pr, &slots, &cur.state);
-        gap = heldout(
-            &prob,
-            &cur.lin,
-            &eqs,
-            &lay.folds,
-            &(0..slots.len()).collect::<Vec<_>>(),
-        )
-        .1;
+        let s = complete::settle(&lay, &st, &slots, &prior_of(&slots))?;
+        (prob, noise, cur, lof, a_fit, gap) = (s.prob, s.noise, s.cur, s.lof, s.a_fit, s.gap_mm);
+    }
+    // Completion beyond the training torques (see `complete`): a spring without its cubic
+    // term, judged on held-out data that reach larger torques than the training data.
+    while found.len() < opts.max_effects {
+        let cands = complete::candidates(&slots, &lay, opts.only.as_deref());
+        if cands.is_empty() {
+            break;
+        }
+        let (scores, pick) =
+            complete::round(&prob, &lay, &cur, &slots, &prior_of, &cands, opts.alpha)?;
+        steps.push(Step {
+            step: steps.len() + 1,
+            gap_train_mm: train_rms_mm(&prob, &cur.lin.raw),
+            gap_heldout_mm: gap,
+            lack_of_fit: lof,
+            candidates: scores,
+            accepted: pick.map(|ci| cands[ci].label()),
+            generic: false,
+            completion: true,
+            look_alikes: Vec::new(),
+            choice: None,
+        });
+        let Some(ci) = pick else { break };
+        let e = cands[ci];
+        let mut new_slots = slots.clone();
+        new_slots.extend(e.slots());
+        let settled = complete::settle(&lay, &cur.state, &new_slots, &prior_of(&new_slots));
+        let s = match settled {
+            Ok(s) if s.gap_mm <= gap => s,
+            other => {
+                let why = match other {
+                    Ok(s) => format!(
+                        "rejected at its refit on its own weights: held-out RMS {gap:.3} → {:.3} mm",
+                        s.gap_mm
+                    ),
+                    Err(err) => format!("fit failed: {err}; skipped"),
+                };
+                if let Some(step) = steps.last_mut() {
+                    step.accepted = None;
+                    if let Some(sc) = step.candidates.iter_mut().find(|c| c.label == e.label()) {
+                        sc.passed = false;
+                        sc.note = why;
+                    }
+                }
+                break;
+            }
+        };
+        found.push((e, gap - s.gap_mm));
+        (prob, noise, cur, lof, a_fit, gap) = (s.prob, s.noise, s.cur, s.lof, s.a_fit, s.gap_mm);
+        slots = new_slots;
     }
     // Uncertainties at the final fit.
     let mut a = a_fit;

@@ -114,6 +114,9 @@ pub struct Step {
     pub accepted: Option<String>,
     /// Whether this step searched the generic dictionary (the library was exhausted).
     pub generic: bool,
+    /// Whether this step completed springs by their cubic term on held-out data beyond the
+    /// training torques (after the selection; see `complete`).
+    pub completion: bool,
     /// Other candidates whose columns, beyond the current model, are nearly parallel to the
     /// accepted one's on these poses (largest canonical correlation ≥ 0.9): what the data
     /// barely tell apart from it, with that correlation.

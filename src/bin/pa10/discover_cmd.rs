@@ -173,6 +173,11 @@ fn print(d: &Discovery, out: Option<&Path>) {
                 "     — no library effect passes while the data still show unexplained variance: searching generic terms per joint (q², q³, sin/cos of q and 2q, approach direction) —"
             );
         }
+        if s.completion && (s.step == 1 || !d.steps[s.step - 2].completion) {
+            println!(
+                "     — the held-out data reach torques beyond the training data: springs without their cubic term completed on the held-out data (Δχ², ΔBIC, p: training, not required) —"
+            );
+        }
         for c in s.candidates.iter().filter(|c| c.identifiable > 0).take(5) {
             println!(
                 "{:>4} {:>34} {:>4} {:>10.1} {:>9.1} {:>9.1e} {:>8}  {}",
