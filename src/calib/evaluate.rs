@@ -6,7 +6,7 @@ use nalgebra::Vector6;
 
 use super::base;
 use super::dataset::Dataset;
-use super::fit::{CalibError, CalibOptions, choose_inner, prepare, seed_base};
+use super::prepare::{CalibError, CalibOptions, choose_inner, prepare, seed_base};
 use crate::model::{Frame, Model, frame_from_pose};
 
 /// Position and orientation errors of `model` (with its base frame) on `data`, per load.

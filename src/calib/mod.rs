@@ -9,5 +9,6 @@ pub mod collect;
 pub mod dataset;
 pub mod evaluate;
 pub mod fit;
+mod prepare;
 pub mod report;
 pub(crate) mod weights;

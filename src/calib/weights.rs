@@ -7,7 +7,7 @@
 use nalgebra::{DMatrix, Matrix6, Vector6};
 
 use super::dataset::Dataset;
-use super::fit::Prepared;
+use super::prepare::Prepared;
 use crate::model::{Model, pose_error};
 use crate::noise::{NoiseModel, Prior, Sample, sym_pow};
 
