@@ -11,7 +11,6 @@ use std::collections::BTreeMap;
 use super::compliance::Stiffness;
 use super::joint_error::JointError;
 use super::params::{Departure, DhRow};
-use super::robot::{Body, JointLimits};
 
 /// A rigid transform as written in files: translation (metres) and unit quaternion
 /// `[w, x, y, z]`.
@@ -101,4 +100,37 @@ pub struct EffectRecord {
     /// Whether `pa10d` compensates it at run time.
     #[serde(default)]
     pub compensated: bool,
+}
+
+/// A rigid body whose weight the joints carry.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Body {
+    /// Name, for reports.
+    pub name: String,
+    /// DH frame the body is fixed to, 1…6 (6 = flange); joints 1…frame move it.
+    pub frame: usize,
+    /// Mass, kg (≥ 0).
+    pub mass: f64,
+    /// Centre of mass in that DH frame, metres.
+    pub com: [f64; 3],
+}
+
+/// Joint position and speed limits, link side.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointLimits {
+    /// Lower position limits, rad.
+    pub lower: [f64; 6],
+    /// Upper position limits, rad.
+    pub upper: [f64; 6],
+    /// Speed limits, rad/s (> 0).
+    pub velocity: [f64; 6],
+}
+
+impl JointLimits {
+    /// True when every joint is within `[lower, upper]` (inclusive).
+    pub fn contains(&self, q: &[f64; 6]) -> bool {
+        (0..6).all(|j| q[j] >= self.lower[j] && q[j] <= self.upper[j])
+    }
 }

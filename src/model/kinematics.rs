@@ -10,8 +10,7 @@ use super::params::{
 };
 use super::robot::{JointGeom, Model};
 
-/// A rigid transform (rotation matrix + translation, metres).
-pub type Frame = nalgebra::IsometryMatrix3<f64>;
+pub use super::frame::Frame;
 
 /// 6×6 geometric Jacobian: rows 0–2 linear velocity (m/s per rad/s), rows 3–5 angular
 /// velocity (rad/s per rad/s), both in the base frame; column j is joint j+1.
@@ -33,7 +32,7 @@ pub fn frame_from_pose(position: [f64; 3], quaternion: [f64; 4]) -> Frame {
 
 /// Splits a frame into position (m) and quaternion `[w, x, y, z]` with `w ≥ 0`.
 pub fn pose_parts(f: &Frame) -> ([f64; 3], [f64; 4]) {
-    let d = super::robot::data_from_frame(f);
+    let d = super::file::PoseData::from(f);
     (d.translation, d.quaternion)
 }
 

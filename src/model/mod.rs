@@ -16,6 +16,7 @@
 
 mod compliance;
 mod file;
+mod frame;
 mod ik;
 mod joint_error;
 mod kinematics;
@@ -25,7 +26,7 @@ mod statics;
 pub mod urdf;
 
 pub use compliance::Stiffness;
-pub use file::{EffectRecord, ModelFile, PoseData};
+pub use file::{Body, EffectRecord, JointLimits, ModelFile, PoseData};
 pub use ik::{IkError, IkSolutions, MAX_SOLUTIONS};
 pub use joint_error::{DEFAULT_GEAR_RATIO, JointError};
 pub use kinematics::{
@@ -34,5 +35,5 @@ pub use kinematics::{
 pub use params::{
     Departure, DhRow, PARAM_COUNT, ParamVector, STIFF_JOINTS, param_names, param_units,
 };
-pub use robot::{Body, JointLimits, Model, ModelError, NOMINAL_YAML};
+pub use robot::{Model, ModelError, NOMINAL_YAML};
 pub use statics::{Compensation, ExternalLoad, NO_DIRECTION, Torques};

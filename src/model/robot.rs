@@ -5,50 +5,16 @@ use std::f64::consts::FRAC_PI_2;
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Quaternion, Translation3, UnitQuaternion, Vector3};
-use serde::{Deserialize, Serialize};
 
 use super::compliance::Stiffness;
-use super::file::{ModelFile, PoseData};
-use super::kinematics::Frame;
+use super::file::{JointLimits, ModelFile, PoseData};
+use super::frame::Frame;
 use super::params::{
     self, HAYATI_JOINT, IDX_KCUB, IDX_KLIN, PARAM_COUNT, ParamVector, STIFF_JOINTS,
 };
 
 /// The nominal PA10-6C model file shipped in `config/model-nominal.yaml`.
 pub const NOMINAL_YAML: &str = include_str!("../../config/model-nominal.yaml");
-
-/// A rigid body whose weight the joints carry.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Body {
-    /// Name, for reports.
-    pub name: String,
-    /// DH frame the body is fixed to, 1…6 (6 = flange); joints 1…frame move it.
-    pub frame: usize,
-    /// Mass, kg (≥ 0).
-    pub mass: f64,
-    /// Centre of mass in that DH frame, metres.
-    pub com: [f64; 3],
-}
-
-/// Joint position and speed limits, link side.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct JointLimits {
-    /// Lower position limits, rad.
-    pub lower: [f64; 6],
-    /// Upper position limits, rad.
-    pub upper: [f64; 6],
-    /// Speed limits, rad/s (> 0).
-    pub velocity: [f64; 6],
-}
-
-impl JointLimits {
-    /// True when every joint is within `[lower, upper]` (inclusive).
-    pub fn contains(&self, q: &[f64; 6]) -> bool {
-        (0..6).all(|j| q[j] >= self.lower[j] && q[j] <= self.upper[j])
-    }
-}
 
 /// Why a model could not be read or built. Nothing is changed when one is returned.
 #[derive(Debug, thiserror::Error)]
@@ -199,23 +165,6 @@ pub(crate) fn frame_from_data(key: &str, p: &PoseData) -> Result<Frame, ModelErr
     Ok(Frame::from_parts(t, q.to_rotation_matrix()))
 }
 
-/// Converts a frame to file pose data (quaternion with w ≥ 0).
-pub(crate) fn data_from_frame(f: &Frame) -> PoseData {
-    PoseData::from(f)
-}
-
-impl From<&Frame> for PoseData {
-    /// The frame's translation (m) and rotation as a unit quaternion with w ≥ 0.
-    fn from(f: &Frame) -> Self {
-        let q = UnitQuaternion::from_rotation_matrix(&f.rotation);
-        let s = if q.w < 0.0 { -1.0 } else { 1.0 };
-        PoseData {
-            translation: [f.translation.x, f.translation.y, f.translation.z],
-            quaternion: [s * q.w, s * q.i, s * q.j, s * q.k],
-        }
-    }
-}
-
 impl Model {
     /// Validates `data` and builds the model. Every rule violated is reported by key.
     pub fn new(data: ModelFile) -> Result<Self, ModelError> {
@@ -346,14 +295,14 @@ impl Model {
     /// A copy with another tool transform.
     pub fn with_tool(&self, tool: &Frame) -> Result<Self, ModelError> {
         let mut d = self.data.clone();
-        d.tool = data_from_frame(tool);
+        d.tool = PoseData::from(tool);
         Self::new(d)
     }
 
     /// A copy with another instrument → base placement.
     pub fn with_base_from_instrument(&self, base: &Frame) -> Result<Self, ModelError> {
         let mut d = self.data.clone();
-        d.base_from_instrument = data_from_frame(base);
+        d.base_from_instrument = PoseData::from(base);
         Self::new(d)
     }
 
