@@ -44,3 +44,4 @@ pub mod record;
 pub mod ros2;
 pub mod sim;
 pub mod stats;
+pub mod text;

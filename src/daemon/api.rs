@@ -151,20 +151,10 @@ pub enum Request {
     Release {},
 }
 
+pub use crate::text::truncate;
+
 /// The longest error text an answer carries, bytes: a hostile request is never echoed whole.
 const MAX_ERROR_BYTES: usize = 300;
-
-/// `s` cut to at most `max` bytes on a character boundary, with `…` when cut.
-pub fn truncate(s: &str, max: usize) -> String {
-    if s.len() <= max {
-        return s.to_string();
-    }
-    let mut end = max;
-    while !s.is_char_boundary(end) {
-        end -= 1;
-    }
-    format!("{}…", &s[..end])
-}
 
 fn err(msg: impl std::fmt::Display) -> Value {
     json!({ "ok": false, "error": truncate(&msg.to_string(), MAX_ERROR_BYTES) })

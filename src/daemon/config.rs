@@ -9,6 +9,8 @@ use serde::{Deserialize, Serialize};
 use crate::can::protocol::check_rate;
 use crate::model::Model;
 
+pub use super::vocab::TorqueSource;
+
 /// Which bus backend the daemon drives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -41,20 +43,6 @@ fn default_bitrate() -> f64 {
 }
 fn default_max_load() -> f64 {
     0.9
-}
-
-/// Where the joint torques for the compensation come from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum TorqueSource {
-    /// Measured motor currents through the torque constants, low-pass filtered: sees every
-    /// load — link masses, tooling, payload, known or not — but carries current noise and
-    /// friction. The default: calibration identifies the springs from measured torques and
-    /// never the masses, so the model's gravity is only as good as its mass seed.
-    Measured,
-    /// The model's gravity plus the configured payload: noise-free, exact only when the
-    /// model's bodies (tooling included) and the payload are right.
-    Model,
 }
 
 /// Real-time options of the control thread.
@@ -219,7 +207,7 @@ pub struct Config {
     pub record: crate::record::RecordConfig,
     /// The live view (Foxglove WebSocket, loopback only; off by default).
     #[serde(default)]
-    pub live: super::live::LiveConfig,
+    pub live: LiveConfig,
     /// Log filter (tracing syntax, e.g. `info`, `pa10=debug`).
     #[serde(default = "default_log")]
     pub log_level: String,
@@ -594,5 +582,50 @@ mod tests {
             err(&y.replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 1"))
                 .contains("at least two cycles")
         );
+    }
+}
+
+/// The live view's configuration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LiveConfig {
+    /// Serve it (default no).
+    #[serde(default)]
+    pub enabled: bool,
+    /// TCP port on 127.0.0.1 (default 8765, Foxglove's).
+    #[serde(default = "default_live_port")]
+    pub port: u16,
+    /// Cycles sent per second to each subscriber (1…500, default 50).
+    #[serde(default = "default_live_rate")]
+    pub rate_hz: f64,
+}
+
+fn default_live_port() -> u16 {
+    8765
+}
+fn default_live_rate() -> f64 {
+    50.0
+}
+
+impl Default for LiveConfig {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            port: default_live_port(),
+            rate_hz: default_live_rate(),
+        }
+    }
+}
+
+impl LiveConfig {
+    /// Checks the rate; the reason otherwise.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.rate_hz.is_finite() && (1.0..=500.0).contains(&self.rate_hz)) {
+            return Err(format!(
+                "live.rate_hz must be within 1…500 Hz, got {}",
+                self.rate_hz
+            ));
+        }
+        Ok(())
     }
 }

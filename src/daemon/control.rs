@@ -21,26 +21,15 @@
 //!   limits, or a controller fault → [`Fault`]; the loop then commands zero speed until
 //!   `reset`.
 
-use super::config::TorqueSource;
 use super::motion::{Move, MoveError, Setpoint};
 use super::trajectory::{JointLimits, Trajectory, TrajectoryError, TrajectoryPoint};
+use super::vocab::TorqueSource;
 use std::sync::Arc;
 
 use super::link::LinkError;
 use crate::model::{ExternalLoad, Model, NO_DIRECTION, Torques};
 
-/// The joint state of one cycle, as decoded from the six FEEDBACK frames.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JointState {
-    /// Resolver (motor-side) angles, rad.
-    pub q_motor: [f64; 6],
-    /// Motor currents, A.
-    pub current: [f64; 6],
-    /// When it was sampled (the SYNC time), s.
-    pub stamp_s: f64,
-    /// The controller reported a fault on some axis.
-    pub controller_fault: bool,
-}
+pub use super::vocab::JointState;
 
 /// Why the loop stopped the arm.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -14,7 +14,7 @@
 
 use std::collections::VecDeque;
 
-use super::control::JointState;
+use super::vocab::JointState;
 use crate::can::protocol::{
     self, Command, ErrorCode, Frame, Message, Request, ServoState, mode, status,
 };

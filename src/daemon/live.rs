@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Duration;
 
 use futures_util::{SinkExt, StreamExt};
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 use serde_json::{Value, json};
 use tokio::net::TcpListener;
 use tokio_tungstenite::tungstenite::Message;
@@ -22,6 +22,7 @@ use tokio_tungstenite::tungstenite::handshake::server::{Request, Response};
 use tokio_tungstenite::tungstenite::http::HeaderValue;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 
+pub use super::config::LiveConfig;
 use super::runtime::{SharedCore, lock};
 use crate::record::CYCLE_SCHEMA;
 
@@ -33,51 +34,6 @@ pub const MAX_CLIENTS: usize = 8;
 const MAX_FRAME: usize = 16 << 10;
 /// The one channel's id.
 const CYCLE_CHANNEL: u64 = 1;
-
-/// The live view's configuration.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct LiveConfig {
-    /// Serve it (default no).
-    #[serde(default)]
-    pub enabled: bool,
-    /// TCP port on 127.0.0.1 (default 8765, Foxglove's).
-    #[serde(default = "default_port")]
-    pub port: u16,
-    /// Cycles sent per second to each subscriber (1…500, default 50).
-    #[serde(default = "default_rate")]
-    pub rate_hz: f64,
-}
-
-fn default_port() -> u16 {
-    8765
-}
-fn default_rate() -> f64 {
-    50.0
-}
-
-impl Default for LiveConfig {
-    fn default() -> Self {
-        Self {
-            enabled: false,
-            port: default_port(),
-            rate_hz: default_rate(),
-        }
-    }
-}
-
-impl LiveConfig {
-    /// Checks the rate; the reason otherwise.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.rate_hz.is_finite() && (1.0..=500.0).contains(&self.rate_hz)) {
-            return Err(format!(
-                "live.rate_hz must be within 1…500 Hz, got {}",
-                self.rate_hz
-            ));
-        }
-        Ok(())
-    }
-}
 
 /// What a client may send.
 #[derive(Debug, Deserialize)]
@@ -205,7 +161,7 @@ async fn client(
                                 subs.retain(|s| !subscription_ids.contains(s));
                                 None
                             }
-                            Err(e) => Some(format!("not understood: {}", super::api::truncate(&e.to_string(), 200))),
+                            Err(e) => Some(format!("not understood: {}", crate::text::truncate(&e.to_string(), 200))),
                         };
                         if let Some(r) = reply {
                             let status = json!({"op": "status", "level": 1, "message": r});

@@ -17,3 +17,4 @@ pub mod realtime;
 pub mod runtime;
 pub mod stats;
 pub mod trajectory;
+pub mod vocab;

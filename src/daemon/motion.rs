@@ -14,6 +14,8 @@ use nalgebra::UnitQuaternion;
 
 use crate::model::{Frame, IkError, Model};
 
+pub use super::vocab::Setpoint;
+
 /// A smooth time-scaling `s(t)`: 0 → 1 with peak rate `v` (1/s) and peak acceleration `a`
 /// (1/s²).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -69,15 +71,6 @@ impl Profile {
             (1.0, 0.0, 0.0)
         }
     }
-}
-
-/// A setpoint: link-side joint angles (rad) and speeds (rad/s).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Setpoint {
-    /// Link angles, rad.
-    pub q: [f64; 6],
-    /// Link speeds, rad/s.
-    pub qd: [f64; 6],
 }
 
 /// Why a move was refused. The robot is left as it was.

@@ -13,7 +13,7 @@
 //! advances τ by the speed scaling times the wall period, so the velocities it commands are
 //! `scaling · dq/dτ` and the accelerations `scaling² · d²q/dτ²`.
 
-use super::motion::Setpoint;
+use super::vocab::Setpoint;
 
 /// At most this many points in one trajectory (the request line limit allows ≈ 600 anyway).
 pub const MAX_POINTS: usize = 2000;

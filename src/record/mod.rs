@@ -379,7 +379,7 @@ pub fn file_in(dir: &Path, name: &str) -> Result<PathBuf, RecordError> {
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'));
     if !plain {
-        return Err(RecordError::Name(crate::daemon::api::truncate(name, 64)));
+        return Err(RecordError::Name(crate::text::truncate(name, 64)));
     }
     let mut f = dir.join(name);
     if f.extension().is_none_or(|e| e != "mcap") {
@@ -477,7 +477,7 @@ impl Writer {
             && slot.is_none()
         {
             tracing::error!(error = %e, "recording: writing failed; records are dropped and counted");
-            *slot = Some(crate::daemon::api::truncate(&e.to_string(), 300));
+            *slot = Some(crate::text::truncate(&e.to_string(), 300));
         }
     }
 
