@@ -213,6 +213,67 @@ pub(super) fn round(
     Ok((scores, pick))
 }
 
+/// Completion rounds at the pruned fit `st` while one passes (within the effect budget):
+/// each round is a [`Step`] with `completion: true`; a taken cubic joins `found` and `slots`.
+pub(super) fn complete(
+    lay: &Layout,
+    prior_of: &dyn Fn(&[Slot]) -> fit::Prior,
+    opts: &DiscoverOptions,
+    found: &mut Vec<(Effect, f64)>,
+    slots: &mut Vec<Slot>,
+    steps: &mut Vec<Step>,
+    mut st: Settled,
+) -> Result<Settled, DiscoverError> {
+    while found.len() < opts.max_effects {
+        let cands = candidates(slots, lay, opts.only.as_deref());
+        if cands.is_empty() {
+            break;
+        }
+        let (scores, pick) = round(&st.prob, lay, &st.cur, slots, &prior_of, &cands, opts.alpha)?;
+        steps.push(Step {
+            step: steps.len() + 1,
+            gap_train_mm: train_rms_mm(&st.prob, &st.cur.lin.raw),
+            gap_heldout_mm: st.gap_mm,
+            lack_of_fit: st.lof,
+            candidates: scores,
+            accepted: pick.map(|ci| cands[ci].label()),
+            generic: false,
+            completion: true,
+            look_alikes: Vec::new(),
+            choice: None,
+        });
+        let Some(ci) = pick else { break };
+        let e = cands[ci];
+        let mut new_slots = slots.to_vec();
+        new_slots.extend(e.slots());
+        let settled = settle(lay, &st.cur.state, &new_slots, &prior_of(&new_slots));
+        let s = match settled {
+            Ok(s) if s.gap_mm <= st.gap_mm => s,
+            other => {
+                let why = match other {
+                    Ok(s) => format!(
+                        "rejected at its refit on its own weights: held-out RMS {:.3} → {:.3} mm",
+                        st.gap_mm, s.gap_mm
+                    ),
+                    Err(err) => format!("fit failed: {err}; skipped"),
+                };
+                if let Some(step) = steps.last_mut() {
+                    step.accepted = None;
+                    if let Some(sc) = step.candidates.iter_mut().find(|c| c.label == e.label()) {
+                        sc.passed = false;
+                        sc.note = why;
+                    }
+                }
+                break;
+            }
+        };
+        found.push((e, st.gap_mm - s.gap_mm));
+        st = s;
+        *slots = new_slots;
+    }
+    Ok(st)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -20,12 +20,16 @@ mod complete;
 pub mod effects;
 mod fit;
 mod layout;
+mod options;
+mod prune;
 mod report;
 mod scoring;
 mod verdict;
 mod weights;
 
 use layout::*;
+pub use options::{DiscoverError, DiscoverOptions};
+use options::{check, model_slots};
 use report::evidence;
 pub use report::{Discovery, Evidence, Found, LackOfFit, NoiseReport, Score, Step, Stratum};
 use scoring::*;
@@ -46,74 +50,6 @@ use crate::stats;
 use effects::{BASE_ABSORBED, Effect, EffectState, Kind, Obs, Slot};
 use fit::{Linearization, Problem};
 
-/// How to run a discovery.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DiscoverOptions {
-    /// Folds of the cross-validation by configuration (used without a holdout set), ≥ 2.
-    pub folds: usize,
-    /// Significance level of every test (family-wise for the candidate tests).
-    pub alpha: f64,
-    /// Smallest ΔBIC that accepts an effect ("very strong" evidence is > 10).
-    pub min_delta_bic: f64,
-    /// Largest number of effects to add.
-    pub max_effects: usize,
-    /// Wave-generator revolutions per output revolution for transmission-error candidates.
-    pub gear_ratio: f64,
-    /// Resolver error per joint (1σ), arcmin; the sidecar's, else the paper's 0.64.
-    pub resolver_arcmin: Option<f64>,
-    /// Motor current → joint torque constants, N·m/A, for datasets with currents.
-    pub torque_constants: Option<[f64; 6]>,
-    /// Reference temperature of the thermal regressor, °C.
-    pub t_ref_c: f64,
-    /// Seed of the fold assignment.
-    pub seed: u64,
-    /// Restrict the candidate library to these kinds (`None`: all).
-    pub only: Option<Vec<Kind>>,
-}
-
-impl Default for DiscoverOptions {
-    fn default() -> Self {
-        Self {
-            folds: 5,
-            alpha: 0.01,
-            min_delta_bic: 10.0,
-            max_effects: 8,
-            gear_ratio: crate::model::DEFAULT_GEAR_RATIO,
-            resolver_arcmin: None,
-            torque_constants: None,
-            t_ref_c: 20.0,
-            seed: 1,
-            only: None,
-        }
-    }
-}
-
-/// Why a discovery could not run. Nothing is written when one is returned.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum DiscoverError {
-    /// An option is out of range.
-    #[error("invalid option {key}: {reason}")]
-    Option {
-        /// The option.
-        key: &'static str,
-        /// Why.
-        reason: String,
-    },
-    /// The data cannot support a discovery.
-    #[error("dataset: {0}")]
-    Data(String),
-    /// A model could not be built.
-    #[error(transparent)]
-    Model(#[from] ModelError),
-    /// The starting fit failed.
-    #[error(transparent)]
-    Calib(#[from] crate::calib::fit::CalibError),
-    /// The data's noise could not be estimated.
-    #[error("dataset: {0}")]
-    Noise(#[from] crate::noise::NoiseError),
-}
-
 /// The held-out error, in noise floors, below which the gap counts as closed.
 pub const GAP_CLOSED: f64 = 1.25;
 
@@ -124,77 +60,6 @@ pub const REPEATABLE_EXCESS: f64 = 2.0;
 /// Candidates a step compares again at their nonlinear refit when the linearised held-out
 /// comparison fails (the strongest first).
 const NONLINEAR_RETRIES: usize = 1;
-
-/// The slots the given model fits: departures (but the two a free base absorbs), the base
-/// frame, the springs it has, the joint errors it has.
-fn model_slots(model: &Model) -> Vec<Slot> {
-    let mut s: Vec<Slot> = (0..24)
-        .filter(|i| !BASE_ABSORBED.contains(i))
-        .map(Slot::Dep)
-        .collect();
-    s.extend((0..6).map(Slot::Base));
-    let d = model.data();
-    for j in 0..6 {
-        if let Some(k) = d.stiffness[j] {
-            s.push(Slot::Compliance(j));
-            if k.kcub > 0.0 {
-                s.push(Slot::Kcub(j));
-            }
-        }
-        if let Some(e) = d.joint_errors[j] {
-            let st = EffectState::from_model(model, e.gear_ratio);
-            s.extend(
-                (0..14)
-                    .map(|k| Slot::JointErr(j, k))
-                    .filter(|&sl| st.get(sl) != 0.0),
-            );
-        }
-    }
-    s
-}
-
-fn check(opts: &DiscoverOptions) -> Result<(), DiscoverError> {
-    let bad = |key, reason: String| Err(DiscoverError::Option { key, reason });
-    if !(2..=50).contains(&opts.folds) {
-        return bad("folds", format!("must be 2…50, got {}", opts.folds));
-    }
-    if !(opts.alpha > 0.0 && opts.alpha < 0.5) {
-        return bad("alpha", format!("must be in (0, 0.5), got {}", opts.alpha));
-    }
-    if !(opts.min_delta_bic.is_finite() && opts.min_delta_bic >= 0.0) {
-        return bad(
-            "min_delta_bic",
-            format!("must be ≥ 0, got {}", opts.min_delta_bic),
-        );
-    }
-    if !(opts.gear_ratio.is_finite() && opts.gear_ratio > 0.0 && opts.gear_ratio <= 1e4) {
-        return bad(
-            "gear_ratio",
-            format!("must be in (0, 10000], got {}", opts.gear_ratio),
-        );
-    }
-    if let Some(r) = opts.resolver_arcmin
-        && !(r.is_finite() && r > 0.0 && r < 60.0)
-    {
-        return bad(
-            "resolver_arcmin",
-            format!("must be in (0, 60) arcmin, got {r}"),
-        );
-    }
-    if !(opts.t_ref_c.is_finite() && (-50.0..=150.0).contains(&opts.t_ref_c)) {
-        return bad(
-            "t_ref_c",
-            format!("must be within -50…150 °C, got {}", opts.t_ref_c),
-        );
-    }
-    if opts.max_effects > 10 {
-        return bad(
-            "max_effects",
-            format!("at most 10, got {}", opts.max_effects),
-        );
-    }
-    Ok(())
-}
 
 /// Runs the workflow on `data` (training) and optionally `holdout` (same instrument set-up),
 /// starting from `model`.
@@ -765,115 +630,28 @@ pub fn discover(
         gap = g2;
         go = suspect(&lof, &noise);
     }
-    // Backward elimination: forward selection cannot take back an early pick that later
-    // effects make redundant (from the rigid model, bending of the forearm looks like the J3
-    // spring until the spring is in). An effect whose removal — linearised at the final fit,
-    // the others refitted: `Δχ² = xᵀ·S·x`, S the Schur complement of its block — is no
-    // longer significant (F test, Bonferroni over the effects found) or fails ΔBIC is
-    // removed and the model refitted, weakest first, until every effect holds.
-    let mut pruned: Vec<String> = Vec::new();
-    while found.len() > 1 {
-        let mut plain = prob.clone();
-        plain.dispersion = (1.0, 1.0);
-        let lin = cur.lin.rewhitened(&plain);
-        let rows = plain.white_rows(|b| b.train);
-        let cols: Vec<usize> = (0..slots.len()).collect();
-        let (mut a, mut g_unused) = fit::normal_eq(&lin, &rows, &cols);
-        prior_of(&slots).add_to(&slots, &cur.state, &mut a, &mut g_unused, false);
-        let dispersion = lof.between.ratio.min(lof.within.ratio).max(1.0);
-        let df_pe = test_dof(&plain, &lin.raw, &noise);
-        let m = found.len() as f64;
-        let weakest = found
-            .iter()
-            .enumerate()
-            .map(|(fi, (e, _))| {
-                let mine: Vec<usize> = e
-                    .slots()
-                    .iter()
-                    .filter_map(|sl| slots.iter().position(|s| s == sl))
-                    .collect();
-                let others: Vec<usize> =
-                    cols.iter().copied().filter(|c| !mine.contains(c)).collect();
-                let sub = |r: &[usize], c: &[usize]| {
-                    DMatrix::from_fn(r.len(), c.len(), |i, j| a[(r[i], c[j])])
-                };
-                let schur = sub(&mine, &mine)
-                    - sub(&mine, &others) * fit::pinv(&sub(&others, &others)) * sub(&others, &mine);
-                let x = DVector::from_fn(mine.len(), |i, _| {
-                    cur.state.get(slots[mine[i]]) / slots[mine[i]].scale()
-                });
-                let chi2 = (x.transpose() * schur * &x)[(0, 0)] / dispersion;
-                let k = mine.len() as f64;
-                let p = (stats::f_sf(chi2 / k, k, df_pe) * m).min(1.0);
-                let bic = chi2 - k * ln_n;
-                (fi, p, bic)
-            })
-            .filter(|&(_, p, bic)| p >= opts.alpha || bic <= opts.min_delta_bic)
-            .max_by(|a, b| a.1.total_cmp(&b.1).then(b.2.total_cmp(&a.2)));
-        let Some((fi, p, bic)) = weakest else { break };
-        let (e, _) = found.remove(fi);
-        pruned.push(format!(
-            "{} (removing it costs ΔBIC {bic:.1}, p = {p:.2e}: the effects found after it explain it)",
-            e.label()
-        ));
-        let mut st = cur.state.clone();
-        for sl in e.slots() {
-            st.set(sl, 0.0);
-        }
-        slots.retain(|sl| !e.slots().contains(sl));
-        let s = complete::settle(&lay, &st, &slots, &prior_of(&slots))?;
-        (prob, noise, cur, lof, a_fit, gap) = (s.prob, s.noise, s.cur, s.lof, s.a_fit, s.gap_mm);
-    }
+    let settled = complete::Settled {
+        prob,
+        noise,
+        cur,
+        lof,
+        a_fit,
+        gap_mm: gap,
+    };
+    let (settled, pruned) =
+        prune::prune(&lay, &prior_of, opts, ln_n, &mut found, &mut slots, settled)?;
     // Completion beyond the training torques (see `complete`): a spring without its cubic
     // term, judged on held-out data that reach larger torques than the training data.
-    while found.len() < opts.max_effects {
-        let cands = complete::candidates(&slots, &lay, opts.only.as_deref());
-        if cands.is_empty() {
-            break;
-        }
-        let (scores, pick) =
-            complete::round(&prob, &lay, &cur, &slots, &prior_of, &cands, opts.alpha)?;
-        steps.push(Step {
-            step: steps.len() + 1,
-            gap_train_mm: train_rms_mm(&prob, &cur.lin.raw),
-            gap_heldout_mm: gap,
-            lack_of_fit: lof,
-            candidates: scores,
-            accepted: pick.map(|ci| cands[ci].label()),
-            generic: false,
-            completion: true,
-            look_alikes: Vec::new(),
-            choice: None,
-        });
-        let Some(ci) = pick else { break };
-        let e = cands[ci];
-        let mut new_slots = slots.clone();
-        new_slots.extend(e.slots());
-        let settled = complete::settle(&lay, &cur.state, &new_slots, &prior_of(&new_slots));
-        let s = match settled {
-            Ok(s) if s.gap_mm <= gap => s,
-            other => {
-                let why = match other {
-                    Ok(s) => format!(
-                        "rejected at its refit on its own weights: held-out RMS {gap:.3} → {:.3} mm",
-                        s.gap_mm
-                    ),
-                    Err(err) => format!("fit failed: {err}; skipped"),
-                };
-                if let Some(step) = steps.last_mut() {
-                    step.accepted = None;
-                    if let Some(sc) = step.candidates.iter_mut().find(|c| c.label == e.label()) {
-                        sc.passed = false;
-                        sc.note = why;
-                    }
-                }
-                break;
-            }
-        };
-        found.push((e, gap - s.gap_mm));
-        (prob, noise, cur, lof, a_fit, gap) = (s.prob, s.noise, s.cur, s.lof, s.a_fit, s.gap_mm);
-        slots = new_slots;
-    }
+    let complete::Settled {
+        prob,
+        noise,
+        cur,
+        lof,
+        a_fit,
+        gap_mm: gap,
+    } = complete::complete(
+        &lay, &prior_of, opts, &mut found, &mut slots, &mut steps, settled,
+    )?;
     // Uncertainties at the final fit.
     let mut a = a_fit;
     let mut g_unused = DVector::zeros(slots.len());
