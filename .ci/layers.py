@@ -24,7 +24,6 @@ OVER = {
     "daemon/api.rs": 857,
     "ros2.rs": 1136,
     "noise.rs": 886,
-    "discover/effects.rs": 878,
 }
 
 

@@ -4,7 +4,8 @@
 
 use nalgebra::Vector3;
 use pa10::calib::dataset::Dataset;
-use pa10::discover::effects::{self, Effect, EffectState, Kind, Obs, Slot};
+use pa10::discover::effects::{Effect, Kind, Slot};
+use pa10::discover::forward::{self, EffectState, Obs};
 use pa10::discover::{DiscoverError, DiscoverOptions, Discovery, discover};
 use pa10::model::{Frame, JointError, Model, Torques};
 use pa10::sim::experiment::{DiscoverySpec, discovery_campaign, paper_model, scenarios};
@@ -24,7 +25,7 @@ fn obs(q: [f64; 6], tau: [f64; 6], load_n: f64, dir: f64, thermal: f64) -> Obs {
 
 fn position(s: &EffectState, o: &Obs) -> Vector3<f64> {
     let g = s.geometry().unwrap();
-    effects::predict(s, &g, o).translation.vector
+    forward::predict(s, &g, o).translation.vector
 }
 
 #[test]
@@ -50,21 +51,21 @@ fn joint_side_effects_move_the_link_as_documented() {
     let q = random_q(&mut r, &m);
     let tau = [0.0, 60.0, 20.0, 8.0, 3.0, 0.5];
     let mut s = EffectState::from_model(&m, 50.0);
-    let base = effects::link_angles(&s, &obs(q, tau, 0.0, 1.0, 0.0));
+    let base = forward::link_angles(&s, &obs(q, tau, 0.0, 1.0, 0.0));
     // Linear compliance on J4: the link lags by c·τ.
     s.set(Slot::Compliance(3), 2.5e-4);
-    let l = effects::link_angles(&s, &obs(q, tau, 0.0, 1.0, 0.0));
+    let l = forward::link_angles(&s, &obs(q, tau, 0.0, 1.0, 0.0));
     assert!((base[3] - l[3] - 2.5e-4 * 8.0).abs() < 1e-15);
     s.set(Slot::Compliance(3), 0.0);
     // Backlash on J1: half the lost motion, on the side of the approach.
     s.set(Slot::JointErr(0, 10), 4e-4);
-    let up = effects::link_angles(&s, &obs(q, tau, 0.0, 1.0, 0.0));
-    let down = effects::link_angles(&s, &obs(q, tau, 0.0, -1.0, 0.0));
+    let up = forward::link_angles(&s, &obs(q, tau, 0.0, 1.0, 0.0));
+    let down = forward::link_angles(&s, &obs(q, tau, 0.0, -1.0, 0.0));
     assert!((base[0] - up[0] - 2e-4).abs() < 1e-15);
     assert!((down[0] - up[0] - 4e-4).abs() < 1e-15);
     // Transmission error on J3 at the wave-generator frequency (1:50).
     s.set(Slot::JointErr(2, 4), 3e-4);
-    let t = effects::link_angles(&s, &obs(q, tau, 0.0, 1.0, 0.0));
+    let t = forward::link_angles(&s, &obs(q, tau, 0.0, 1.0, 0.0));
     assert!((up[2] - t[2] - 3e-4 * (50.0 * q[2]).sin()).abs() < 1e-15);
 }
 
@@ -98,7 +99,7 @@ fn the_model_file_compensates_the_run_time_effects_exactly_as_discovery_predicts
         let tau: [f64; 6] = std::array::from_fn(|j| 30.0 * ((j as f64) - 2.5) * q[j].sin());
         for dir in [-1.0, 0.0, 1.0] {
             let o = obs(q, tau, 0.0, dir, 0.0);
-            let expect = effects::link_angles(&s, &o);
+            let expect = forward::link_angles(&s, &o);
             let got = model
                 .link_from_motor(&q, Torques::Given(&tau), &[dir; 6])
                 .unwrap()

@@ -18,7 +18,8 @@ use nalgebra::{DMatrix, DVector, Matrix6, SymmetricEigen, Vector6};
 use crate::noise::sym_pow as inv_pow;
 use rayon::prelude::*;
 
-use super::effects::{EffectState, Obs, Slot, residual};
+use super::effects::Slot;
+use super::forward::{EffectState, Obs, residual};
 use crate::model::{Model, ModelError};
 
 /// One configuration's rows and whitening.
@@ -76,7 +77,7 @@ impl Problem {
         let blocks = blocks
             .into_iter()
             .map(|super::layout::ConfigRows { rows, train, cells }| {
-                let q = super::effects::link_angles(state, &obs[rows[0]]);
+                let q = super::forward::link_angles(state, &obs[rows[0]]);
                 let j = geom.jacobian(&q);
                 let s = j * j.transpose() * (sigma_resolver * sigma_resolver);
                 let p = rows.iter().map(|&i| d_inv[i]).sum::<Matrix6<f64>>();

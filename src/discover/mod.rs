@@ -19,6 +19,7 @@
 mod complete;
 pub mod effects;
 mod fit;
+pub mod forward;
 mod layout;
 mod options;
 mod prune;
@@ -47,8 +48,9 @@ use crate::calib::dataset::{Dataset, Effort};
 use crate::calib::fit::{CalibOptions, fit_base_only};
 use crate::model::{EffectRecord, Model, ModelError, frame_from_pose};
 use crate::stats;
-use effects::{BASE_ABSORBED, Effect, EffectState, Kind, Obs, Slot};
+use effects::{BASE_ABSORBED, Effect, Kind, Slot};
 use fit::{Linearization, Problem};
+use forward::{EffectState, Obs};
 
 /// The held-out error, in noise floors, below which the gap counts as closed.
 pub const GAP_CLOSED: f64 = 1.25;

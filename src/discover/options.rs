@@ -1,7 +1,8 @@
 //! How a discovery is asked for and how it can refuse: [`DiscoverOptions`] with their valid
 //! ranges, [`DiscoverError`], and the parameters ("slots") a given starting model fits.
 
-use super::effects::{BASE_ABSORBED, EffectState, Kind, Slot};
+use super::effects::{BASE_ABSORBED, Kind, Slot};
+use super::forward::EffectState;
 use crate::model::{Model, ModelError};
 
 /// How to run a discovery.

@@ -9,7 +9,7 @@ pub(super) fn torque_sensitivity(
     geom: &Model,
     o: &Obs,
 ) -> nalgebra::Matrix6<f64> {
-    let q = effects::link_angles(state, o);
+    let q = forward::link_angles(state, o);
     let mut j = geom.jacobian(&q);
     for k in 0..6 {
         let c = state.compliance[k];
@@ -49,7 +49,7 @@ pub(super) fn problem(
     let jac: Vec<nalgebra::Matrix6<f64>> = lay
         .obs
         .iter()
-        .map(|o| geom.jacobian(&effects::link_angles(state, o)))
+        .map(|o| geom.jacobian(&forward::link_angles(state, o)))
         .collect();
     let mut samples = Vec::new();
     let mut cell_id = 0usize;
@@ -69,7 +69,7 @@ pub(super) fn problem(
                     tau: o.tau,
                     // The estimator takes measured − predicted and ∂pred/∂τ; discovery's
                     // residuals are predicted − measured and its sensitivity ∂r/∂τ.
-                    residual: -effects::residual(state, &geom, o),
+                    residual: -forward::residual(state, &geom, o),
                     jq: jac[i],
                     jt: -sens[i],
                 });
@@ -119,7 +119,7 @@ pub(super) fn noise_floor_mm(
     let (mut ss, mut n) = (0.0, 0usize);
     for &b in folds.iter().flatten() {
         for &i in &p.blocks[b].rows {
-            let q = effects::link_angles(state, &p.obs[i]);
+            let q = forward::link_angles(state, &p.obs[i]);
             let j = geom.jacobian(&q);
             let d = &p.d[i];
             ss += j.fixed_rows::<3>(0).norm_squared() * sr * sr + d[(0, 0)] + d[(1, 1)] + d[(2, 2)];
