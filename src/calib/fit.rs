@@ -59,6 +59,11 @@ pub struct CalibResult {
     pub singular_values: Vec<f64>,
     /// Directions regularised because the data cannot see them.
     pub weak: Vec<WeakDirection>,
+    /// Set when the fitted model leaves a repeatable error far above the resolver's
+    /// specification (more than 100×, at least 10 arcmin) on a dataset whose sidecar declares
+    /// the set-up: what the data show, and that `pa10 discover` names what is missing.
+    /// (Without a sidecar the same misfit is refused as a set-up error.)
+    pub misfit: Option<String>,
     /// Cost reached by each start, in start order.
     pub start_costs: Vec<f64>,
     /// Residual noise level used for the weak-direction test (paper units).
@@ -592,19 +597,29 @@ pub fn calibrate(
     // A fit that leaves the configurations repeating an error far beyond the resolver's
     // specification has not explained the data (a wrong tool, a missing sidecar): refused,
     // never written as a calibration.
+    let mut misfit = None;
     if let Some(nm) = &noise_model {
         let r = nm.repeatable_rad;
         // (At least 10 arcmin: a sidecar may call the resolvers exact.)
         let limit = (NOT_EXPLAINED * prior.resolver_rad).max(10.0 * crate::accuracy::ARCMIN);
         if nm.structure.shares_offsets() && r.lo > limit {
-            return Err(CalibError::Data(format!(
-                "the fit does not explain the data: the configurations repeat an error of {:.1} arcmin (95 % interval from {:.1}), {:.0}× the resolver's specified {:.2} arcmin{}",
+            let what = format!(
+                "the fit does not explain the data: the configurations repeat an error of {:.1} arcmin (95 % interval from {:.1}), {:.0}× the resolver's specified {:.2} arcmin",
                 r.value / crate::accuracy::ARCMIN,
                 r.lo / crate::accuracy::ARCMIN,
                 r.value / prior.resolver_rad,
                 prior.resolver_rad / crate::accuracy::ARCMIN,
-                sidecar_hint(data)
-            )));
+            );
+            // Without a sidecar the likeliest cause is the set-up (the tool taken at the
+            // flange): refused, with what is missing. With one, the set-up is declared and the
+            // misfit is an effect the paper's model lacks: the model is the best fit of that
+            // model, and `pa10 discover` is the tool that names what is missing.
+            if data.meta.is_none() {
+                return Err(CalibError::Data(format!("{what}{}", sidecar_hint(data))));
+            }
+            misfit = Some(format!(
+                "{what}: the model lacks an effect these data show (a spring on another joint, a tool that sags, …); run `pa10 discover` on these data from this model to name it"
+            ));
         }
     }
 
@@ -645,6 +660,7 @@ pub fn calibrate(
         std_errors,
         singular_values,
         weak,
+        misfit,
         start_costs,
         noise_level: noise,
         noise: noise_model,

@@ -73,6 +73,9 @@ pub struct Report {
     pub null_directions: usize,
     /// Parameter combinations the data cannot determine (held near nominal / seed).
     pub weak: Vec<WeakDirection>,
+    /// The fit leaves a repeatable error far above the resolver's specification: why, and
+    /// what to run (see [`crate::calib::fit::CalibResult::misfit`]).
+    pub misfit: Option<String>,
     /// Final cost per start.
     pub start_costs: Vec<f64>,
     /// Options used.
@@ -209,6 +212,7 @@ pub fn run(
         condition_number,
         null_directions,
         weak: result.weak.clone(),
+        misfit: result.misfit.clone(),
         start_costs: result.start_costs.clone(),
         epsilon: opts.epsilon,
         weighting: opts.weighting,

@@ -134,6 +134,9 @@ pub fn calibrate(a: &CalibrateArgs) -> Result<()> {
         bar.set_position(n as u64)
     })?;
     bar.finish_and_clear();
+    if let Some(m) = &outcome.result.misfit {
+        eprintln!("pa10: warning: {m}");
+    }
     outcome
         .result
         .model
@@ -296,6 +299,9 @@ fn print_report(r: &Report, out: &Path) -> Result<()> {
                 names.join(", ")
             )?;
         }
+    }
+    if let Some(m) = &r.misfit {
+        writeln!(o, "\nwarning: {m}")?;
     }
     writeln!(o, "\nwrote {}", out.display())?;
     Ok(())
