@@ -1,0 +1,149 @@
+//! What the core shows: each cycle kept as the last sample and handed to the recording, and
+//! the [`Status`] snapshot clients read.
+
+use super::*;
+
+impl Core {
+    /// Keeps this cycle as the last sample (the live view) and hands it to the recording
+    /// (no allocation but an event's text on a fault); ends the recording when its duration
+    /// is reached.
+    pub(super) fn record_cycle(&mut self, stamp_s: f64, complete: bool) {
+        let Some(c) = self.ctl.as_ref() else {
+            return;
+        };
+        let o = *c.output();
+        let code = c.activity_code();
+        let sp = c.setpoint().q;
+        let counters = self.link.counters();
+        let js = self.last.unwrap_or(JointState {
+            q_motor: [0.0; 6],
+            current: [0.0; 6],
+            stamp_s,
+            controller_fault: false,
+        });
+        let sample = CycleSample {
+            stamp_s,
+            cycle: self.stats.cycles,
+            activity: code,
+            feedback: complete,
+            q_motor: js.q_motor,
+            current: js.current,
+            tau: o.tau,
+            delta: std::array::from_fn(|j| o.target[j] - sp[j]),
+            setpoint: sp,
+            target: o.target,
+            speeds: o.speeds,
+            late_us: self.last_late_us,
+            link: [
+                counters.incomplete,
+                counters.paused,
+                counters.stale,
+                counters.malformed,
+            ],
+        };
+        self.last_sample = Some(sample);
+        let Some(tap) = self.tap.as_mut() else {
+            return;
+        };
+        tap.push(Record::Cycle(sample));
+        let done = tap.until_s.is_some_and(|end| stamp_s >= end);
+        // events after the cycle, at its stamp
+        if code != self.last_code {
+            self.last_code = code;
+            const NAMES: [&str; 6] = [
+                "holding",
+                "moving",
+                "following",
+                "streaming",
+                "stopping",
+                "fault",
+            ];
+            self.log_event_at(stamp_s, "state", NAMES[code as usize]);
+            if code == 5
+                && let Some(f) = self.fault()
+            {
+                self.log_event_at(stamp_s, "fault", f.to_string());
+            }
+        }
+        if done {
+            self.log_event_at(stamp_s, "recording", "duration reached");
+            self.tap = None;
+        }
+    }
+
+    /// The status snapshot.
+    pub fn status(&self) -> Status {
+        let fault = self
+            .fault()
+            .map(|f| match (&f, self.link.controller_report()) {
+                (Fault::Controller, Some(report)) => format!("{f}: {report}"),
+                _ => f.to_string(),
+            });
+        let (state, setpoint, tool, payload) = match &self.ctl {
+            None => (
+                if self.failure.is_some() {
+                    "fault"
+                } else {
+                    "starting"
+                },
+                [0.0; 6],
+                None,
+                self.params.payload_n,
+            ),
+            Some(c) => {
+                let s = match c.activity() {
+                    _ if self.link.is_closed() => "closed",
+                    Activity::Faulted(_) => "fault",
+                    _ if self.restarting => "starting",
+                    Activity::Holding => "holding",
+                    Activity::Moving { .. } => "moving",
+                    Activity::Following { .. } => "following",
+                    Activity::Streaming { .. } => "streaming",
+                    Activity::Stopping { .. } => "stopping",
+                };
+                (
+                    s,
+                    c.setpoint().q,
+                    Some(c.model().fk(&c.setpoint().q)),
+                    c.payload_n(),
+                )
+            }
+        };
+        let (p, q) = tool
+            .map(|t| crate::model::pose_parts(&t))
+            .unwrap_or(([0.0; 3], [1.0, 0.0, 0.0, 0.0]));
+        Status {
+            state: state.to_string(),
+            fault,
+            servo: self.link.servo_state().map(|s| format!("{s:?}")),
+            setpoint,
+            q_motor: self.last.map(|s| s.q_motor).unwrap_or([0.0; 6]),
+            current: self.last.map(|s| s.current).unwrap_or([0.0; 6]),
+            time_s: self.now_s,
+            tau: self.ctl.as_ref().map_or([0.0; 6], |c| c.output().tau),
+            tool_position: p,
+            tool_quaternion: q,
+            payload_n: payload,
+            payload_com: self
+                .ctl
+                .as_ref()
+                .map_or(self.params.payload_com, |c| c.payload_com()),
+            link: self.link.counters(),
+            cycle: CycleStats {
+                jitter_us: self.jitter.summary(),
+                compute_us: self.compute.summary(),
+                lock_wait_us: self.lock_wait.summary(),
+                ..self.stats
+            },
+            trajectory: self
+                .ctl
+                .as_ref()
+                .map(|c| *c.trajectory())
+                .unwrap_or_default(),
+            speed_scaling: self.ctl.as_ref().map_or(1.0, |c| c.speed_scaling().0),
+            stream_end: self.ctl.as_ref().and_then(|c| c.stream_end()),
+            leased: self.lease.is_some(),
+            recording: self.recorded.as_ref().map(|r| r.status(self.tap.is_some())),
+        }
+    }
+}
