@@ -18,7 +18,6 @@ import sys
 MAX_LINES = 800
 # Files still over the limit (#26), with their line counts when listed.
 OVER = {
-    "daemon/api.rs": 857,
     "ros2.rs": 1136,
     "noise.rs": 886,
 }
