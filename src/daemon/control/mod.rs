@@ -31,6 +31,7 @@ use crate::model::{ExternalLoad, Model, NO_DIRECTION, Torques};
 pub use super::vocab::JointState;
 pub use params::*;
 
+mod cycle;
 mod params;
 mod stream;
 
@@ -313,164 +314,31 @@ impl Controller {
     /// One cycle at `now_s`: `fb` is this cycle's complete feedback, `None` when it did not
     /// arrive. Returns the six speed commands (rad/s); zero when faulted.
     pub fn step(&mut self, now_s: f64, fb: Option<&JointState>) -> [f64; 6] {
-        match fb {
-            Some(f) => {
-                self.last_feedback_s = f.stamp_s;
-                self.last_state = Some(*f);
-                self.missed = 0;
-            }
-            None => self.missed = self.missed.saturating_add(1),
-        }
-        if matches!(self.activity, Activity::Faulted(_)) {
-            return [0.0; 6];
-        }
-        // the controller's silence is judged in cycles the loop ran and listened through: a
-        // host pause of the loop itself is not evidence against the controller (its own
-        // watchdog, `limits.controller_watchdog_ms`, judges the loop)
-        let listened = f64::from(self.missed) * self.p.period_s;
-        if listened > self.p.feedback_timeout_s + 1e-9 {
-            return self.fault(Fault::StaleFeedback {
-                missed_cycles: self.missed,
-                listened_ms: listened * 1e3,
-                age_ms: (now_s - self.last_feedback_s) * 1e3,
-                limit_ms: self.p.feedback_timeout_s * 1e3,
-            });
-        }
-        let Some(state) = self.last_state else {
-            return [0.0; 6];
+        let state = match self.take_feedback(now_s, fb) {
+            Ok(Some(state)) => state,
+            Ok(None) => return [0.0; 6],
+            Err(f) => return self.fault(f),
         };
-        if state.controller_fault {
-            return self.fault(Fault::Controller);
+        if let Err(f) = self.advance_setpoint(now_s) {
+            return self.fault(f);
         }
-        // setpoint
-        if let Activity::Moving { mv, start_s } = &self.activity {
-            let t = now_s - start_s;
-            match mv.sample(&self.model, t, &self.setpoint.q) {
-                Ok(sp) => self.setpoint = sp,
-                Err(e) => return self.fault(Fault::Setpoint(e)),
-            }
-            if t >= mv.duration() {
-                self.setpoint.qd = [0.0; 6];
-                self.activity = Activity::Holding;
-            }
-        }
-        // the speed scaling ramps toward what was asked
-        let ramp = self.p.period_s / SCALING_RAMP_S;
-        self.scaling += (self.scaling_target - self.scaling).clamp(-ramp, ramp);
-        if let Activity::Following {
-            traj, tau, ended_s, ..
-        } = &mut self.activity
-        {
-            *tau = (*tau + self.scaling * self.p.period_s).min(traj.duration());
-            let s = traj.sample(*tau);
-            self.setpoint.q = s.q;
-            for j in 0..6 {
-                self.setpoint.qd[j] = if *tau < traj.duration() {
-                    self.scaling * s.qd[j]
-                } else {
-                    0.0
-                };
-            }
-            self.trajectory.progress = *tau / traj.duration();
-            if *tau >= traj.duration() && ended_s.is_none() {
-                *ended_s = Some(now_s);
-            }
-        }
-        if let Activity::Streaming {
-            stream,
-            last_s,
-            target_v,
-        } = self.activity
-        {
-            if now_s - last_s > self.p.stream_deadline_s {
-                self.stream_end = Some(match stream {
-                    Stream::Servo(_) => "servo: no setpoint within servo.deadline_ms; stopped",
-                    Stream::Jog(_) | Stream::Twist { .. } => {
-                        "jog: no command within servo.deadline_ms; stopped"
-                    }
-                });
-                self.stop();
-            } else {
-                self.stream_step(stream, &target_v);
-            }
-        }
-        if let Activity::Stopping { decel } = self.activity {
-            let dt = self.p.period_s;
-            let mut moving = false;
-            for j in 0..6 {
-                let v = self.setpoint.qd[j];
-                let nv = if v > 0.0 {
-                    (v - decel[j] * dt).max(0.0)
-                } else {
-                    (v + decel[j] * dt).min(0.0)
-                };
-                self.setpoint.q[j] += 0.5 * (v + nv) * dt;
-                self.setpoint.qd[j] = nv;
-                moving |= nv != 0.0;
-            }
-            if !moving {
-                self.activity = Activity::Holding;
-            }
-        }
-        // torques
-        let load = self.load();
-        let tau = match self.p.torque_source {
-            TorqueSource::Model => self.model.static_torques(&self.setpoint.q, &load),
-            TorqueSource::Measured => {
-                let alpha =
-                    1.0 - (-std::f64::consts::TAU * self.p.filter_hz * self.p.period_s).exp();
-                for j in 0..6 {
-                    let m = state.current[j] * self.p.torque_constants[j];
-                    self.tau_filtered[j] += alpha * (m - self.tau_filtered[j]);
-                }
-                self.tau_filtered
-            }
+        let tau = self.torque_estimate(&state);
+        self.note_directions();
+        let target = match self.compensated_target(&tau) {
+            Ok(t) => t,
+            Err(f) => return self.fault(f),
         };
-        for (d, v) in self.direction.iter_mut().zip(&self.setpoint.qd) {
-            if *v != 0.0 {
-                *d = v.signum();
-            }
-        }
-        let target =
-            match self
-                .model
-                .compensate(&self.setpoint.q, Torques::Given(&tau), &self.direction)
-            {
-                Ok(c) => c.q_motor,
-                Err(_) => {
-                    return self.fault(Fault::Setpoint(MoveError::NonFinite("compensated target")));
-                }
-            };
-        let lim = self.model.limits();
-        let mut out = [0.0; 6];
-        let mut actual = [0.0; 6];
-        for j in 0..6 {
-            let e = target[j] - state.q_motor[j];
-            if e.abs() > self.p.following_error {
-                return self.fault(Fault::FollowingError {
-                    joint: j + 1,
-                    error: e.abs(),
-                    limit: self.p.following_error,
-                });
-            }
-            let link = state.q_motor[j] - (target[j] - self.setpoint.q[j]);
-            if link < lim.lower[j] - 1e-3 || link > lim.upper[j] + 1e-3 {
-                return self.fault(Fault::JointLimit {
-                    joint: j + 1,
-                    value: link,
-                });
-            }
-            out[j] =
-                (self.setpoint.qd[j] + self.p.gain * e).clamp(-self.p.speed[j], self.p.speed[j]);
-            actual[j] = link;
-        }
+        let (speeds, link) = match self.position_loop(&state, &target) {
+            Ok(v) => v,
+            Err(f) => return self.fault(f),
+        };
         self.out = CycleOutput {
             tau,
             target,
-            speeds: out,
+            speeds,
         };
-        self.track(&actual, now_s);
-        out
+        self.track(&link, now_s);
+        speeds
     }
 
     /// What the last cycle computed.

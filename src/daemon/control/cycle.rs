@@ -1,0 +1,391 @@
+//! The steps of one control cycle, in the order [`Controller::step`] runs them:
+//!
+//! 1. [`take_feedback`](Controller::take_feedback) — the cycle's joint state, the stale-feedback
+//!    and controller-fault checks;
+//! 2. [`advance_setpoint`](Controller::advance_setpoint) — the setpoint source in force (a
+//!    move, a trajectory under the speed scaling ramp, a stream with its deadline, a stop's
+//!    deceleration);
+//! 3. [`torque_estimate`](Controller::torque_estimate) — filtered measured torques or the
+//!    model's statics;
+//! 4. [`note_directions`](Controller::note_directions) and
+//!    [`compensated_target`](Controller::compensated_target) — the motor target that puts the
+//!    link at the setpoint;
+//! 5. [`position_loop`](Controller::position_loop) — following-error and joint-limit checks,
+//!    speed commands within the limits.
+//!
+//! Each step is a method on plain data with no clock and no allocation; a step that finds a
+//! fault returns it, and `step` stops the arm with it.
+
+use super::*;
+
+impl Controller {
+    /// Step 1: bookkeeping of this cycle's feedback `fb` (`None`: it did not arrive). `Ok(None)`
+    /// when the loop commands zero (already faulted, or no feedback yet); a fault when the
+    /// controller has been silent longer than the feedback timeout, in cycles the loop ran
+    /// and listened through, or reports a fault itself.
+    pub(super) fn take_feedback(
+        &mut self,
+        now_s: f64,
+        fb: Option<&JointState>,
+    ) -> Result<Option<JointState>, Fault> {
+        match fb {
+            Some(f) => {
+                self.last_feedback_s = f.stamp_s;
+                self.last_state = Some(*f);
+                self.missed = 0;
+            }
+            None => self.missed = self.missed.saturating_add(1),
+        }
+        if matches!(self.activity, Activity::Faulted(_)) {
+            return Ok(None);
+        }
+        // the controller's silence is judged in cycles the loop ran and listened through: a
+        // host pause of the loop itself is not evidence against the controller (its own
+        // watchdog, `limits.controller_watchdog_ms`, judges the loop)
+        let listened = f64::from(self.missed) * self.p.period_s;
+        if listened > self.p.feedback_timeout_s + 1e-9 {
+            return Err(Fault::StaleFeedback {
+                missed_cycles: self.missed,
+                listened_ms: listened * 1e3,
+                age_ms: (now_s - self.last_feedback_s) * 1e3,
+                limit_ms: self.p.feedback_timeout_s * 1e3,
+            });
+        }
+        let Some(state) = self.last_state else {
+            return Ok(None);
+        };
+        if state.controller_fault {
+            return Err(Fault::Controller);
+        }
+        Ok(Some(state))
+    }
+
+    /// Step 2: the setpoint (link angles, rad; speeds, rad/s) at `now_s` from the source in
+    /// force, and the speed scaling's ramp toward what was asked.
+    pub(super) fn advance_setpoint(&mut self, now_s: f64) -> Result<(), Fault> {
+        if let Activity::Moving { mv, start_s } = &self.activity {
+            let t = now_s - start_s;
+            self.setpoint = mv
+                .sample(&self.model, t, &self.setpoint.q)
+                .map_err(Fault::Setpoint)?;
+            if t >= mv.duration() {
+                self.setpoint.qd = [0.0; 6];
+                self.activity = Activity::Holding;
+            }
+        }
+        // the speed scaling ramps toward what was asked
+        let ramp = self.p.period_s / SCALING_RAMP_S;
+        self.scaling += (self.scaling_target - self.scaling).clamp(-ramp, ramp);
+        if let Activity::Following {
+            traj, tau, ended_s, ..
+        } = &mut self.activity
+        {
+            *tau = (*tau + self.scaling * self.p.period_s).min(traj.duration());
+            let s = traj.sample(*tau);
+            self.setpoint.q = s.q;
+            for j in 0..6 {
+                self.setpoint.qd[j] = if *tau < traj.duration() {
+                    self.scaling * s.qd[j]
+                } else {
+                    0.0
+                };
+            }
+            self.trajectory.progress = *tau / traj.duration();
+            if *tau >= traj.duration() && ended_s.is_none() {
+                *ended_s = Some(now_s);
+            }
+        }
+        if let Activity::Streaming {
+            stream,
+            last_s,
+            target_v,
+        } = self.activity
+        {
+            if now_s - last_s > self.p.stream_deadline_s {
+                self.stream_end = Some(match stream {
+                    Stream::Servo(_) => "servo: no setpoint within servo.deadline_ms; stopped",
+                    Stream::Jog(_) | Stream::Twist { .. } => {
+                        "jog: no command within servo.deadline_ms; stopped"
+                    }
+                });
+                self.stop();
+            } else {
+                self.stream_step(stream, &target_v);
+            }
+        }
+        if let Activity::Stopping { decel } = self.activity {
+            let dt = self.p.period_s;
+            let mut moving = false;
+            for j in 0..6 {
+                let v = self.setpoint.qd[j];
+                let nv = if v > 0.0 {
+                    (v - decel[j] * dt).max(0.0)
+                } else {
+                    (v + decel[j] * dt).min(0.0)
+                };
+                self.setpoint.q[j] += 0.5 * (v + nv) * dt;
+                self.setpoint.qd[j] = nv;
+                moving |= nv != 0.0;
+            }
+            if !moving {
+                self.activity = Activity::Holding;
+            }
+        }
+        Ok(())
+    }
+
+    /// Step 3: the joint torques (N·m) the compensation uses: the model's statics at the
+    /// setpoint with the payload, or the measured currents × torque constants through the
+    /// first-order low-pass of `filter_hz`.
+    pub(super) fn torque_estimate(&mut self, state: &JointState) -> [f64; 6] {
+        match self.p.torque_source {
+            TorqueSource::Model => self.model.static_torques(&self.setpoint.q, &self.load()),
+            TorqueSource::Measured => {
+                let alpha =
+                    1.0 - (-std::f64::consts::TAU * self.p.filter_hz * self.p.period_s).exp();
+                for j in 0..6 {
+                    let m = state.current[j] * self.p.torque_constants[j];
+                    self.tau_filtered[j] += alpha * (m - self.tau_filtered[j]);
+                }
+                self.tau_filtered
+            }
+        }
+    }
+
+    /// Step 4a: the direction each joint moves in (the side its backlash is taken up on);
+    /// a joint at rest keeps its last one.
+    pub(super) fn note_directions(&mut self) {
+        for (d, v) in self.direction.iter_mut().zip(&self.setpoint.qd) {
+            if *v != 0.0 {
+                *d = v.signum();
+            }
+        }
+    }
+
+    /// Step 4b: the motor target (rad) that puts the link at the setpoint under `tau`.
+    pub(super) fn compensated_target(&self, tau: &[f64; 6]) -> Result<[f64; 6], Fault> {
+        self.model
+            .compensate(&self.setpoint.q, Torques::Given(tau), &self.direction)
+            .map(|c| c.q_motor)
+            .map_err(|_| Fault::Setpoint(MoveError::NonFinite("compensated target")))
+    }
+
+    /// Step 5: the position loop on the motor side, `speed = q̇_setpoint + K·(target − q_motor)`
+    /// clamped to the speed limits (rad/s), after the following-error and joint-limit checks
+    /// (the link angle estimated as the measured motor angle less the compensation). Returns
+    /// the speeds and those link angles (rad).
+    pub(super) fn position_loop(
+        &self,
+        state: &JointState,
+        target: &[f64; 6],
+    ) -> Result<([f64; 6], [f64; 6]), Fault> {
+        let lim = self.model.limits();
+        let mut out = [0.0; 6];
+        let mut link = [0.0; 6];
+        for j in 0..6 {
+            let e = target[j] - state.q_motor[j];
+            if e.abs() > self.p.following_error {
+                return Err(Fault::FollowingError {
+                    joint: j + 1,
+                    error: e.abs(),
+                    limit: self.p.following_error,
+                });
+            }
+            link[j] = state.q_motor[j] - (target[j] - self.setpoint.q[j]);
+            if link[j] < lim.lower[j] - 1e-3 || link[j] > lim.upper[j] + 1e-3 {
+                return Err(Fault::JointLimit {
+                    joint: j + 1,
+                    value: link[j],
+                });
+            }
+            out[j] =
+                (self.setpoint.qd[j] + self.p.gain * e).clamp(-self.p.speed[j], self.p.speed[j]);
+        }
+        Ok((out, link))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PERIOD: f64 = 0.002;
+
+    fn params() -> LoopParams {
+        LoopParams {
+            period_s: PERIOD,
+            gain: 20.0,
+            torque_source: TorqueSource::Measured,
+            filter_hz: 20.0,
+            torque_constants: [10.0; 6],
+            payload_n: 0.0,
+            payload_com: [0.0; 3],
+            speed: [1.0; 6],
+            acceleration: [2.0; 6],
+            following_error: 0.01,
+            feedback_timeout_s: 0.02,
+            stream_deadline_s: 0.1,
+        }
+    }
+
+    fn state(q_motor: [f64; 6], current: [f64; 6], stamp_s: f64) -> JointState {
+        JointState {
+            q_motor,
+            current,
+            stamp_s,
+            controller_fault: false,
+        }
+    }
+
+    const Q0: [f64; 6] = [0.1, 0.4, 0.3, 0.0, 0.5, 0.0];
+
+    fn controller() -> Controller {
+        Controller::new(Model::nominal(), params(), &state(Q0, [0.0; 6], 0.0))
+    }
+
+    #[test]
+    fn feedback_silence_faults_after_the_timeout_in_listened_cycles() {
+        let mut c = controller();
+        // 0.02 s at 2 ms: ten silent cycles are within the timeout, the eleventh is not
+        for k in 1..=10 {
+            assert!(matches!(
+                c.take_feedback(k as f64 * PERIOD, None),
+                Ok(Some(_))
+            ));
+        }
+        let f = c.take_feedback(11.0 * PERIOD, None);
+        assert!(
+            matches!(
+                f,
+                Err(Fault::StaleFeedback {
+                    missed_cycles: 11,
+                    ..
+                })
+            ),
+            "{f:?}"
+        );
+        // a feedback resets the count; a controller fault is a fault
+        let mut bad = state(Q0, [0.0; 6], 0.03);
+        assert!(matches!(c.take_feedback(0.03, Some(&bad)), Ok(Some(_))));
+        bad.controller_fault = true;
+        assert_eq!(c.take_feedback(0.032, Some(&bad)), Err(Fault::Controller));
+    }
+
+    #[test]
+    fn a_faulted_loop_takes_feedback_but_commands_nothing() {
+        let mut c = controller();
+        c.halt(Fault::Controller);
+        let s = state(Q0, [0.0; 6], 0.002);
+        assert_eq!(c.take_feedback(0.002, Some(&s)), Ok(None));
+        assert_eq!(c.step(0.004, Some(&s)), [0.0; 6]);
+    }
+
+    #[test]
+    fn measured_torques_pass_a_first_order_low_pass() {
+        let mut c = controller();
+        let s = state(Q0, [1.0; 6], 0.0);
+        let alpha = 1.0 - (-std::f64::consts::TAU * 20.0 * PERIOD).exp();
+        let t1 = c.torque_estimate(&s);
+        assert!((t1[0] - 10.0 * alpha).abs() < 1e-12, "{t1:?}");
+        // after many cycles it settles at current × constant
+        let mut t = t1;
+        for _ in 0..2000 {
+            t = c.torque_estimate(&s);
+        }
+        assert!((t[3] - 10.0).abs() < 1e-9, "{t:?}");
+    }
+
+    #[test]
+    fn model_torques_are_the_statics_at_the_setpoint() {
+        let mut p = params();
+        p.torque_source = TorqueSource::Model;
+        let mut c = Controller::new(Model::nominal(), p, &state(Q0, [5.0; 6], 0.0));
+        let t = c.torque_estimate(&state(Q0, [5.0; 6], 0.0));
+        let expect = Model::nominal().static_torques(&c.setpoint().q, &ExternalLoad::default());
+        assert_eq!(t, expect);
+        assert!(t[1].abs() > 1.0, "gravity on J2: {t:?}");
+    }
+
+    #[test]
+    fn the_position_loop_clamps_to_the_speed_limits_and_checks_the_following_error() {
+        let c = controller();
+        let s = state(Q0, [0.0; 6], 0.0);
+        let mut target = Q0;
+        target[0] += 0.001; // gain 20: 0.02 rad/s
+        target[1] += 0.009; // 0.18 rad/s
+        let (speeds, link) = c.position_loop(&s, &target).expect("within limits");
+        assert!((speeds[0] - 0.02).abs() < 1e-12 && (speeds[1] - 0.18).abs() < 1e-12);
+        assert_eq!(speeds[2], 0.0);
+        // the link is estimated as the motor angle less the compensation
+        assert!((link[0] - (Q0[0] - 0.001)).abs() < 1e-12);
+        target[1] = Q0[1] + 0.02;
+        assert!(matches!(
+            c.position_loop(&s, &target),
+            Err(Fault::FollowingError { joint: 2, .. })
+        ));
+        let mut fast = params();
+        fast.following_error = 1.0;
+        let c = Controller::new(Model::nominal(), fast, &s);
+        target[1] = Q0[1] + 0.5; // 10 rad/s asked
+        let (speeds, _) = c.position_loop(&s, &target).expect("within limits");
+        assert_eq!(speeds[1], 1.0, "clamped to the speed limit");
+    }
+
+    #[test]
+    fn a_joint_outside_its_limits_is_a_fault() {
+        let mut c = controller();
+        let lim = Model::nominal().limits().upper[4];
+        let mut q = Q0;
+        q[4] = lim + 0.01;
+        // the motor on its target, the link estimate (= the setpoint) beyond the limit
+        c.setpoint.q = q;
+        let s = state(q, [0.0; 6], 0.0);
+        assert!(matches!(
+            c.position_loop(&s, &q),
+            Err(Fault::JointLimit { joint: 5, .. })
+        ));
+    }
+
+    #[test]
+    fn a_stop_decelerates_the_setpoint_to_rest() {
+        let mut c = controller();
+        c.setpoint.qd = [0.2, 0.0, 0.0, 0.0, 0.0, -0.1];
+        c.activity = Activity::Streaming {
+            stream: Stream::Jog([0.0; 6]),
+            last_s: 0.0,
+            target_v: [0.0; 6],
+        };
+        c.stop();
+        let mut n = 0;
+        while !matches!(c.activity, Activity::Holding) {
+            c.advance_setpoint(n as f64 * PERIOD).expect("no fault");
+            n += 1;
+            assert!(n < 1000, "never came to rest");
+        }
+        // 0.2 rad/s at 2 rad/s²: 0.1 s, both joints together
+        assert!((49..=51).contains(&n), "{n} cycles");
+        assert_eq!(c.setpoint.qd, [0.0; 6]);
+        assert!(
+            (c.setpoint.q[0] - (Q0[0] + 0.01)).abs() < 1e-3,
+            "{:?}",
+            c.setpoint.q
+        );
+    }
+
+    #[test]
+    fn directions_follow_the_setpoint_speed_and_hold_at_rest() {
+        let mut c = controller();
+        c.setpoint.qd = [0.1, -0.1, 0.0, 0.0, 0.0, 0.0];
+        c.note_directions();
+        c.setpoint.qd = [0.0; 6];
+        c.note_directions();
+        assert_eq!(&c.direction[..3], &[1.0, -1.0, 0.0]);
+        // the compensated target at rest and no torque is the setpoint plus what the
+        // model's joint errors add (none on the nominal model)
+        let t = c.compensated_target(&[0.0; 6]).expect("finite");
+        assert!(
+            t.iter().zip(&Q0).all(|(a, b)| (a - b).abs() < 1e-12),
+            "{t:?}"
+        );
+    }
+}
