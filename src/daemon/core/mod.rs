@@ -623,3 +623,6 @@ impl Core {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;
