@@ -8,7 +8,8 @@
 //!
 //! 1. joint side: `q_link = q_motor − δ(τ) − e(q_motor) − (b/2)·dir` — compliance (linear
 //!    `c·τ` or linear + cubic spring), transmission error, eccentricity, backlash
-//!    ([`JointError`], shared with the run-time [`Model`]);
+//!    ([`JointError`](crate::model::JointError), shared with the run-time
+//!    [`Model`](crate::model::Model));
 //! 2. the geometry (DH with departures, Hayati β) at those link angles;
 //! 3. small rigid changes inserted along the chain from the flange back to the base: tool
 //!    offset at the flange, thermal growth of a link along its axis, bending of a link about
