@@ -14,11 +14,20 @@
 //! - [`noise`]: what the data's noise is — reading noise, repeatable resolver error,
 //!   instrument and torque noise — estimated from the data as variance components.
 //! - [`stats`]: the distribution functions the tests of calibration and discovery need.
-//! - [`sim`]: the simulated PA10 (hidden truth, servo controller, campaigns).
-//! - [`can`] and [`daemon`]: the protocol, buses and the control daemon's core.
-//! - [`record`]: recording every control cycle to MCAP, and reading recordings back.
-//! - [`ros2`]: the ROS 2 messages of the `pa10-ros2` bridge and their translation to and
-//!   from the daemon's requests (pure; the DDS side is the binary's).
+//! - [`sim`]: the simulated PA10 (hidden truth and campaigns; with `daemon`, its servo
+//!   controller and the rigs that run the daemon against it).
+//! - [`can`]: the protocol codec and the bus abstraction.
+//! - `daemon` (feature `daemon`): the control daemon's sans-IO core and its shells.
+//! - `record` (feature `record`): recording every control cycle to MCAP, and reading
+//!   recordings back.
+//! - `ros2` (feature `daemon`): the ROS 2 messages of the `pa10-ros2` bridge and their
+//!   translation to and from the daemon's requests (pure; the DDS side is the binary's).
+//!
+//! **Features.** `default = ["cli"]`: the command-line tools over the `daemon` (which needs
+//! `record`); `ros2` adds the bridge's DDS side. With `default-features = false` the crate is
+//! the science alone — [`model`], [`calib`], [`discover`], [`noise`], [`accuracy`], the
+//! simulator's truth and campaigns — and compiles none of the daemon's IO (62 crates instead
+//! of 172).
 //!
 //! Units are SI throughout: metres, radians, newtons, newton-metres, seconds.
 //! Joint vectors are `[f64; 6]` ordered J1 … J6 (S1, S2, E1, E2, W1, W2).
@@ -35,12 +44,15 @@
 pub mod accuracy;
 pub mod calib;
 pub mod can;
+#[cfg(feature = "daemon")]
 pub mod daemon;
 pub mod discover;
 pub mod model;
 pub mod noise;
 pub mod plot;
+#[cfg(feature = "record")]
 pub mod record;
+#[cfg(feature = "daemon")]
 pub mod ros2;
 pub mod sim;
 pub mod stats;

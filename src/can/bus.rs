@@ -1,6 +1,6 @@
 //! The [`CanBus`] abstraction: what the daemon and the simulator need from a CAN interface,
-//! and nothing more. Backends: [`crate::can::virtual_bus`] (in-process) and, on Linux,
-//! [`crate::can::socketcan_bus`] (SocketCAN, incl. vcan).
+//! and nothing more. Backends (feature `daemon`): `crate::can::virtual_bus` (in-process) and, on Linux,
+//! `crate::can::socketcan_bus` (SocketCAN, incl. vcan).
 
 use std::future::Future;
 use std::time::Duration;

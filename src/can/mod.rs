@@ -1,15 +1,19 @@
 //! The CAN layer: the sans-IO protocol codec ([`protocol`], no formats), the DBC view of a
-//! message ([`signals`]), candump logs ([`candump`]) and the [`CanBus`] abstraction with its
-//! backends ([`virtual_bus`] in-process, `socketcan_bus` on Linux).
+//! message ([`signals`]) and the [`CanBus`] abstraction; with the `daemon` feature also
+//! candump logs (`candump`) and the backends (`virtual_bus` in-process, `socketcan_bus` on
+//! Linux).
 
 pub mod bus;
+#[cfg(feature = "daemon")]
 pub mod candump;
 pub mod protocol;
 pub mod signals;
-#[cfg(target_os = "linux")]
+#[cfg(all(target_os = "linux", feature = "daemon"))]
 pub mod socketcan_bus;
+#[cfg(feature = "daemon")]
 pub mod virtual_bus;
 
 pub use bus::{BusError, BusEvent, CanBus, Filter};
 pub use protocol::{Frame, Message, bus_load, check_rate, decode, encode};
+#[cfg(feature = "daemon")]
 pub use virtual_bus::{VirtualBus, VirtualConfig, VirtualEndpoint};

@@ -6,7 +6,9 @@
 //! [`experiment`] module builds the seed paper's measurement campaign on top of it.
 
 pub mod experiment;
+#[cfg(feature = "daemon")]
 pub mod rig;
+#[cfg(feature = "daemon")]
 pub mod servo;
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
