@@ -9,7 +9,10 @@
 //! waits. [`read`] reads recordings back (info, CSV export, the still phases a calibration
 //! campaign is cut from).
 
+mod mode;
 pub mod read;
+
+pub use mode::{Mode, describe_codes};
 
 use std::borrow::Cow;
 use std::fs::File;
@@ -28,8 +31,8 @@ pub struct CycleSample {
     pub stamp_s: f64,
     /// Cycles answered so far.
     pub cycle: u64,
-    /// What the loop was doing: 0 holding, 1 moving, 2 following, 3 streaming,
-    /// 4 stopping, 5 faulted.
+    /// What the loop was doing: a [`Mode`] code (0 holding, 1 moving, 2 following,
+    /// 3 streaming, 4 stopping, 5 fault).
     pub activity: u8,
     /// Whether this cycle's feedback was complete.
     pub feedback: bool,
@@ -283,7 +286,7 @@ pub type OpenSink = Box<dyn FnMut(usize) -> std::io::Result<(Box<dyn Sink>, Path
 pub const CYCLE_SCHEMA: &str = r#"{"type":"object","title":"pa10.Cycle","properties":{
 "stamp_s":{"type":"number","description":"s since the daemon started"},
 "cycle":{"type":"integer"},
-"activity":{"type":"integer","description":"0 holding, 1 moving, 2 following, 3 streaming, 4 stopping, 5 faulted"},
+"activity":{"type":"integer","description":"0 holding, 1 moving, 2 following, 3 streaming, 4 stopping, 5 fault"},
 "feedback":{"type":"boolean"},
 "q_motor":{"type":"array","items":{"type":"number"},"description":"resolver angles, rad"},
 "current":{"type":"array","items":{"type":"number"},"description":"motor currents, A"},

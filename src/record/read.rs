@@ -223,7 +223,9 @@ pub fn still_phases(
     settle_s: f64,
     speed_tol: f64,
 ) -> Vec<StillPhase> {
-    let still = |s: &CycleSample| s.activity == 0 && s.speeds.iter().all(|v| v.abs() < speed_tol);
+    let still = |s: &CycleSample| {
+        s.activity == super::Mode::Holding.code() && s.speeds.iter().all(|v| v.abs() < speed_tol)
+    };
     let mut out = Vec::new();
     let mut i = 0;
     while i < samples.len() {

@@ -27,6 +27,7 @@ use super::vocab::TorqueSource;
 use std::sync::Arc;
 
 use crate::model::{ExternalLoad, Model, NO_DIRECTION, Torques};
+use crate::record::Mode;
 
 pub use super::vocab::JointState;
 pub use params::*;
@@ -346,16 +347,20 @@ impl Controller {
         &self.out
     }
 
-    /// The activity as a small code (recordings): 0 holding, 1 moving, 2 following,
-    /// 3 streaming, 4 stopping, 5 faulted.
+    /// The activity as its [`Mode`] code (what recordings persist).
     pub fn activity_code(&self) -> u8 {
+        self.mode().code()
+    }
+
+    /// What the loop is doing, as the recording's one mode table has it.
+    pub fn mode(&self) -> Mode {
         match self.activity {
-            Activity::Holding => 0,
-            Activity::Moving { .. } => 1,
-            Activity::Following { .. } => 2,
-            Activity::Streaming { .. } => 3,
-            Activity::Stopping { .. } => 4,
-            Activity::Faulted(_) => 5,
+            Activity::Holding => Mode::Holding,
+            Activity::Moving { .. } => Mode::Moving,
+            Activity::Following { .. } => Mode::Following,
+            Activity::Streaming { .. } => Mode::Streaming,
+            Activity::Stopping { .. } => Mode::Stopping,
+            Activity::Faulted(_) => Mode::Faulted,
         }
     }
 

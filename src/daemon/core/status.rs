@@ -2,6 +2,7 @@
 //! the [`Status`] snapshot clients read.
 
 use super::*;
+use crate::record::Mode;
 
 impl Core {
     /// Keeps this cycle as the last sample (the live view) and hands it to the recording
@@ -50,16 +51,9 @@ impl Core {
         // events after the cycle, at its stamp
         if code != self.last_code {
             self.last_code = code;
-            const NAMES: [&str; 6] = [
-                "holding",
-                "moving",
-                "following",
-                "streaming",
-                "stopping",
-                "fault",
-            ];
-            self.log_event_at(stamp_s, "state", NAMES[code as usize]);
-            if code == 5
+            let mode = Mode::from_code(code).unwrap_or(Mode::Faulted);
+            self.log_event_at(stamp_s, "state", mode.name());
+            if mode == Mode::Faulted
                 && let Some(f) = self.fault()
             {
                 self.log_event_at(stamp_s, "fault", f.to_string());
@@ -91,15 +85,11 @@ impl Core {
                 self.params.payload_n,
             ),
             Some(c) => {
-                let s = match c.activity() {
+                let s = match c.mode() {
                     _ if self.link.is_closed() => "closed",
-                    Activity::Faulted(_) => "fault",
+                    Mode::Faulted => Mode::Faulted.name(),
                     _ if self.restarting => "starting",
-                    Activity::Holding => "holding",
-                    Activity::Moving { .. } => "moving",
-                    Activity::Following { .. } => "following",
-                    Activity::Streaming { .. } => "streaming",
-                    Activity::Stopping { .. } => "stopping",
+                    m => m.name(),
                 };
                 (
                     s,
