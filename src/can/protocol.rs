@@ -262,6 +262,21 @@ impl Command {
             torque: 0,
         })
     }
+    /// The speed-mode command the loop sends every cycle: as [`Command::speed`], but a speed
+    /// beyond the field's range saturates at it and a non-finite one is 0 rad/s (the loop
+    /// has already clamped to the joint's limit; this never fails inside a cycle).
+    pub fn speed_saturating(axis: u8, cycle: u8, speed_rad_s: f64) -> Self {
+        let counts = (speed_rad_s / SPEED_LSB)
+            .round()
+            .clamp(i16::MIN as f64, i16::MAX as f64);
+        Self {
+            axis,
+            mode: mode::SERVO,
+            cycle,
+            speed: if counts.is_nan() { 0 } else { counts as i16 },
+            torque: 0,
+        }
+    }
     /// Speed, rad/s.
     pub fn speed_rad_s(&self) -> f64 {
         self.speed as f64 * SPEED_LSB
@@ -609,6 +624,15 @@ mod tests {
         assert!((b.angle_rad() - std::f64::consts::TAU).abs() < 1e-12);
         assert_eq!(b.current_a(), -1.5);
         assert!(Command::speed(1, 0, 7.0).is_err());
+        // the loop's encoder saturates instead, and sends 0 for a non-finite speed
+        let max = Command::speed_saturating(1, 0, 7.0);
+        assert_eq!(max.speed, i16::MAX);
+        assert_eq!(Command::speed_saturating(1, 0, -7.0).speed, i16::MIN);
+        assert_eq!(Command::speed_saturating(1, 0, f64::NAN).speed, 0);
+        assert_eq!(
+            Command::speed_saturating(2, 7, 1.0),
+            Command::speed(2, 7, 1.0).expect("in range")
+        );
         assert!(Command::speed(1, 0, f64::NAN).is_err());
         assert!(angle_counts(1e6).is_err());
         assert_eq!(current_counts(99.0), i16::MAX);

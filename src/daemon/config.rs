@@ -162,8 +162,11 @@ fn default_mode() -> String {
 fn default_max_clients() -> usize {
     64
 }
+/// The only directory `load_model` reads from unless the configuration names another.
+pub const DEFAULT_MODEL_DIR: &str = "/etc/pa10d";
+
 fn default_model_dir() -> PathBuf {
-    PathBuf::from("/etc/pa10d")
+    PathBuf::from(DEFAULT_MODEL_DIR)
 }
 
 /// The simulated robot behind the virtual backend.

@@ -111,7 +111,7 @@ impl Core {
             stop_sent: false,
             restarting: false,
             syncs: 0,
-            model_dir: std::path::PathBuf::from("/etc/pa10d"),
+            model_dir: std::path::PathBuf::from(super::config::DEFAULT_MODEL_DIR),
             lease: None,
             tap: None,
             recorded: None,

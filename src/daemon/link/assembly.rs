@@ -2,7 +2,7 @@
 //! [`JointState`] in SI units and counts everything else ([`LinkCounters`]);
 //! [`command_frames`] encodes the six COMMAND frames of a cycle's speeds. No allocation.
 
-use crate::can::protocol::{self, Command, Frame, Message, mode, status};
+use crate::can::protocol::{self, Command, Frame, Message, status};
 use crate::daemon::vocab::JointState;
 
 /// Counters of what the link saw, for `status`.
@@ -112,17 +112,7 @@ const EMPTY: Frame = match Frame::new_const(0, 0) {
 /// speeds (rad/s) are clamped to the field's range.
 pub fn command_frames(cycle: u16, speeds: &[f64; 6]) -> [Frame; 6] {
     std::array::from_fn(|j| {
-        let counts = (speeds[j] / protocol::SPEED_LSB)
-            .round()
-            .clamp(i16::MIN as f64, i16::MAX as f64);
-        let counts = if counts.is_nan() { 0 } else { counts as i16 };
-        let c = Command {
-            axis: j as u8 + 1,
-            mode: mode::SERVO,
-            cycle: cycle as u8,
-            speed: counts,
-            torque: 0,
-        };
+        let c = Command::speed_saturating(j as u8 + 1, cycle as u8, speeds[j]);
         protocol::encode(&Message::Command(c)).unwrap_or(EMPTY)
     })
 }
