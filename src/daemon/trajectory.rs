@@ -38,9 +38,11 @@ pub struct TrajectoryPoint {
     pub time_from_start: f64,
 }
 
-/// Joint limits a trajectory is checked against.
+/// What a trajectory is checked against: the model's position limits
+/// ([`crate::model::JointLimits`]) with the loop's speed and acceleration limits (the
+/// configuration's `limits`).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct JointLimits {
+pub struct MotionLimits {
     /// Lower position limits, rad.
     pub lower: [f64; 6],
     /// Upper position limits, rad.
@@ -223,7 +225,7 @@ impl Trajectory {
     pub fn plan(
         start: &Setpoint,
         points: &[TrajectoryPoint],
-        lim: &JointLimits,
+        lim: &MotionLimits,
         scaling: f64,
     ) -> Result<Self, TrajectoryError> {
         if points.is_empty() || points.len() > MAX_POINTS {
@@ -341,7 +343,7 @@ impl Trajectory {
 
     /// Checks positions, speeds and accelerations of the whole trajectory against `lim` at
     /// speed scaling `scaling`.
-    pub fn check(&self, lim: &JointLimits, scaling: f64) -> Result<(), TrajectoryError> {
+    pub fn check(&self, lim: &MotionLimits, scaling: f64) -> Result<(), TrajectoryError> {
         self.check_from(0.0, lim, scaling)
     }
 
@@ -349,7 +351,7 @@ impl Trajectory {
     pub fn check_from(
         &self,
         tau: f64,
-        lim: &JointLimits,
+        lim: &MotionLimits,
         scaling: f64,
     ) -> Result<(), TrajectoryError> {
         let mut s = Sample::default();
@@ -449,7 +451,7 @@ fn spline_velocities(t: &[f64], k: &mut [Knot]) {
 mod tests {
     use super::*;
 
-    const LIM: JointLimits = JointLimits {
+    const LIM: MotionLimits = MotionLimits {
         lower: [-3.0; 6],
         upper: [3.0; 6],
         speed: [1.0; 6],

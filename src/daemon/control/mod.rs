@@ -22,7 +22,7 @@
 //!   `reset`.
 
 use super::motion::{Move, MoveError, Setpoint};
-use super::trajectory::{JointLimits, Trajectory, TrajectoryPoint};
+use super::trajectory::{MotionLimits, Trajectory, TrajectoryPoint};
 use super::vocab::TorqueSource;
 use std::sync::Arc;
 
@@ -148,9 +148,9 @@ impl Controller {
     }
 
     /// Position, speed and acceleration limits in force.
-    pub fn joint_limits(&self) -> JointLimits {
+    pub fn joint_limits(&self) -> MotionLimits {
         let lim = self.model.limits();
-        JointLimits {
+        MotionLimits {
             lower: lim.lower,
             upper: lim.upper,
             speed: self.p.speed,
