@@ -68,6 +68,7 @@ fn within(est: f64, truth: f64, tol: f64) -> bool {
 /// paper's two-level one with a stiffness prior, not the GLS optimum); calibration names the
 /// same structure and validates within 1.15× of the generator's own floor.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn noise_is_measured_and_calibration_reaches_the_floor_on_every_family() {
     let _cpu = crate::common::busy_lock();
     for fam in families() {
@@ -148,6 +149,7 @@ fn validation_mean(model: &Model, val: &Dataset) -> f64 {
 /// Without repeats the structure cannot be measured: it is assumed, said, and calibration
 /// still works.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn sets_without_repeats_calibrate_on_a_stated_assumption() {
     let _cpu = crate::common::busy_lock();
     let fam = families()[0];
@@ -189,6 +191,7 @@ fn discovered(set: &indep::Set, start: &Model, tag: &str) -> Discovery {
 
 /// On clean sets of every family, discovery from the calibrated model names nothing.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn discovery_names_nothing_on_clean_independent_sets() {
     let _cpu = crate::common::busy_lock();
     for fam in families() {
@@ -214,6 +217,7 @@ fn discovery_names_nothing_on_clean_independent_sets() {
 
 /// A J4 spring the paper's model lacks is named on J4, on every family.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn discovery_names_a_hidden_j4_spring_on_every_family() {
     let _cpu = crate::common::busy_lock();
     for fam in families() {
@@ -244,6 +248,7 @@ fn discovery_names_a_hidden_j4_spring_on_every_family() {
 /// by a library look-alike where one explains it (eccentricity: `sin q ≈ q − q³/6`), else
 /// by the generic dictionary — and the gap ends within 1.25× the floor.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn an_out_of_library_effect_is_localised_on_its_joint() {
     let _cpu = crate::common::busy_lock();
     for fam in families() {
@@ -273,6 +278,7 @@ fn an_out_of_library_effect_is_localised_on_its_joint() {
 /// From the rigid nominal model, discovery finds the paper's springs on J2, J3 and J5 (and
 /// nothing on the other joints), and closes the gap.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn discovery_from_the_nominal_model_finds_the_papers_springs() {
     let _cpu = crate::common::busy_lock();
     let set = generate(&Spec::paper(16, families()[0]));

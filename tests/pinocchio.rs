@@ -91,6 +91,7 @@ fn labels(d: &Discovery) -> Vec<&str> {
 /// seed), a hidden effect in the library and two outside it are each named on the right
 /// joint and in the right form; a clean campaign names nothing; no run aborts.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn hidden_effects_are_named_on_pinocchio_campaigns() {
     if !pinocchio() {
         return;
@@ -126,6 +127,7 @@ fn hidden_effects_are_named_on_pinocchio_campaigns() {
 /// transmission error, the set that used to end the run with a runaway `da5`): both are
 /// named, on their joints.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn two_hidden_effects_at_once_on_the_papers_design() {
     if !pinocchio() {
         return;
@@ -166,6 +168,7 @@ fn two_hidden_effects_at_once_on_the_papers_design() {
 /// are found together (they compete in every bootstrap resample; stability is judged on the
 /// selected set), nothing on the other joints, and the gap closes.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn from_the_nominal_model_the_springs_are_found_together() {
     if !pinocchio() {
         return;
@@ -196,6 +199,7 @@ fn from_the_nominal_model_the_springs_are_found_together() {
 /// pure error that does not exist). The springs are found, with the J5 cubic, and the
 /// held-out error is within 1.3× the floor.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn from_the_nominal_model_on_two_loads_and_on_one_repeat() {
     if !pinocchio() {
         return;
@@ -234,6 +238,7 @@ fn from_the_nominal_model_on_two_loads_and_on_one_repeat() {
 /// training's), and the held-out error ends within 1.3x the floor (1.41x without it). The
 /// J2 cubic, whose refit is softening on these data, is refused as not hardening.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn from_the_nominal_model_a_spring_is_completed_beyond_the_training_loads() {
     if !pinocchio() {
         return;
@@ -286,6 +291,7 @@ fn from_the_nominal_model_a_spring_is_completed_beyond_the_training_loads() {
 /// above the study's 45 / 80): named on J3. On the study's random designs of 15–40
 /// configurations its λ is mostly 12–67: below what any test on those data could show.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn a_revealable_j3_transmission_error_is_named_on_j3() {
     if !pinocchio() {
         return;
@@ -327,6 +333,7 @@ fn a_revealable_j3_transmission_error_is_named_on_j3() {
 /// (a cost far above any real one) instead of ending the fit, so `calibrate` does not abort
 /// and discovery names the spring.
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn calibration_survives_trial_steps_outside_the_valid_range() {
     if !pinocchio() {
         return;
@@ -350,6 +357,7 @@ fn calibration_survives_trial_steps_outside_the_valid_range() {
 /// and discovery from that model names the J4 spring and closes the gap. (Without a sidecar
 /// the same misfit is refused as a set-up error: `tests/cli.rs`.)
 #[test]
+#[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn a_calibration_that_cannot_explain_its_data_says_so_and_discovery_names_why() {
     if !pinocchio() {
         return;
