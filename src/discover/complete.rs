@@ -61,6 +61,8 @@ pub(super) struct Settled {
     pub(super) cur: fit::Fitted,
     pub(super) lof: LackOfFit,
     pub(super) a_fit: DMatrix<f64>,
+    /// Whitened held-out cost per held-out configuration.
+    pub(super) heldout_costs: Vec<f64>,
     /// Held-out RMS position error, mm.
     pub(super) gap_mm: f64,
 }
@@ -79,37 +81,36 @@ pub(super) fn settle(
     let eqs =
         fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout).with_prior(prior, slots, &cur.state);
     let cols: Vec<usize> = (0..slots.len()).collect();
-    let gap_mm = heldout(&prob, &cur.lin, &eqs, &lay.folds, &cols).1;
+    let (heldout_costs, gap_mm) = heldout(&prob, &cur.lin, &eqs, &lay.folds, &cols);
     Ok(Settled {
         prob,
         noise,
         cur,
         lof,
         a_fit,
+        heldout_costs,
         gap_mm,
     })
 }
 
-/// One completion round over `cands` at the current fit `cur` of `slots` on `prob`: every
-/// candidate refitted (nonlinear, on `prob`'s weights) and compared with the current model
-/// on the held-out configurations. Returns the candidates' scores (best held-out t first)
-/// and the index into `cands` of the one taken, if any.
+/// One completion round over `cands` at the settled fit `st` of `slots`: every candidate
+/// refitted (nonlinear, on `st.prob`'s weights) and compared with the settled model on the
+/// held-out configurations. Returns the
+/// candidates' scores (best held-out t first) and the index into `cands` of the one taken,
+/// if any.
 pub(super) fn round(
-    prob: &Problem,
+    st: &Settled,
     lay: &Layout,
-    cur: &fit::Fitted,
     slots: &[Slot],
     prior_of: &dyn Fn(&[Slot]) -> fit::Prior,
     cands: &[Effect],
     alpha: f64,
 ) -> Result<(Vec<Score>, Option<usize>), DiscoverError> {
+    let (prob, cur) = (&st.prob, &st.cur);
+    let (base_costs, base_gap) = (&st.heldout_costs, st.gap_mm);
     let reach = torque_reach(lay);
-    let prior = prior_of(slots);
-    let eqs =
-        fold_eqs(prob, &cur.lin, &lay.folds, lay.holdout).with_prior(&prior, slots, &cur.state);
-    let cols: Vec<usize> = (0..slots.len()).collect();
-    let (base_costs, base_gap) = heldout(prob, &cur.lin, &eqs, &lay.folds, &cols);
-    let cost_before = fit::cost_at(prob, &cur.state, slots, &prior)?;
+    let ln_n = lay.ln_n();
+    let cost_before = fit::cost_at(prob, &cur.state, slots, &prior_of(slots))?;
     let m = cands.len().max(1) as f64;
     let mut scored: Vec<(Score, Option<f64>)> = Vec::new();
     for e in cands {
@@ -117,23 +118,7 @@ pub(super) fn round(
         let mut with = slots.to_vec();
         with.extend(e.slots());
         let pw = prior_of(&with);
-        let mut score = Score {
-            label: e.label(),
-            name: e.kind.name(),
-            joint: e.joint(),
-            params: 1,
-            identifiable: 1,
-            delta_chi2: 0.0,
-            delta_bic: f64::NEG_INFINITY,
-            p_adjusted: 1.0,
-            heldout_gain: None,
-            paired_t: None,
-            rank_p: None,
-            heldout_gap_mm: None,
-            stability: None,
-            passed: false,
-            note: String::new(),
-        };
+        let mut score = Score::untested(e, 1, 1);
         let refit = fit::fit_balanced(&mut prob.clone(), &cur.state, &with, &pw).and_then(|f| {
             let cost = fit::cost_at(prob, &f.state, &with, &pw)?;
             Ok((f, cost))
@@ -151,8 +136,7 @@ pub(super) fn round(
             fold_eqs(prob, &lin, &lay.folds, lay.holdout).with_prior(&pw, &with, &fitted.state);
         let all: Vec<usize> = (0..with.len()).collect();
         let (costs, gap_w) = heldout(prob, &lin, &eqs_w, &lay.folds, &all);
-        let test = Paired::new(&drops(&base_costs, &costs), alpha / m);
-        let ln_n = (prob.white_rows(|b| b.train).len() as f64).ln();
+        let test = Paired::new(&drops(base_costs, &costs), alpha / m);
         score.delta_chi2 = cost_before - cost_with;
         score.delta_bic = score.delta_chi2 - ln_n;
         score.p_adjusted = (stats::chi2_sf(score.delta_chi2.max(0.0), 1.0) * m).min(1.0);
@@ -229,7 +213,7 @@ pub(super) fn complete(
         if cands.is_empty() {
             break;
         }
-        let (scores, pick) = round(&st.prob, lay, &st.cur, slots, &prior_of, &cands, opts.alpha)?;
+        let (scores, pick) = round(&st, lay, slots, &prior_of, &cands, opts.alpha)?;
         steps.push(Step {
             step: steps.len() + 1,
             gap_train_mm: train_rms_mm(&st.prob, &st.cur.lin.raw),

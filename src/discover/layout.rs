@@ -25,6 +25,19 @@ pub(super) struct Layout {
     pub(super) meta_position_m: Option<f64>,
 }
 
+impl Layout {
+    /// ln N of the ΔBIC: N the training residuals, 6 per training observation.
+    pub(super) fn ln_n(&self) -> f64 {
+        let n: usize = self
+            .blocks
+            .iter()
+            .filter(|b| b.train)
+            .map(|b| 6 * b.rows.len())
+            .sum();
+        (n as f64).ln()
+    }
+}
+
 pub(super) fn tau_of(
     effort: &Effort,
     kt: Option<[f64; 6]>,

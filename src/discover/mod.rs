@@ -83,13 +83,7 @@ pub fn discover(
     let m0 = fit_base_only(&m0, data, None, &copts)?;
     let state0 = EffectState::from_model(&m0, opts.gear_ratio);
     let lay = layout(data, holdout, opts)?;
-    let n_resid: usize = lay
-        .blocks
-        .iter()
-        .filter(|b| b.train)
-        .map(|b| 6 * b.rows.len())
-        .sum();
-    let ln_n = (n_resid as f64).ln();
+    let ln_n = lay.ln_n();
     let mut slots = model_slots(&m0);
     let base_slots = slots.clone();
     // Fit, re-estimate the noise model at the fit (it depends on the springs), fit again.
@@ -99,10 +93,16 @@ pub fn discover(
     let held = std::sync::Arc::new(fit::Held::at(&p0, &state0, &slots)?);
     let prior_of = |slots: &[Slot]| fit::Prior::new(slots, &base_slots, &held);
     let first = fit::fit_balanced(&mut p0, &state0, &slots, &prior_of(&slots))?;
-    let (mut prob, mut noise) = problem(&lay, &first.state, slots.len())?;
-    let mut cur = fit::fit_balanced(&mut prob, &first.state, &slots, &prior_of(&slots))?;
+    let complete::Settled {
+        mut prob,
+        mut noise,
+        mut cur,
+        lof: lof0,
+        mut a_fit,
+        heldout_costs: mut costs,
+        gap_mm: gap0,
+    } = complete::settle(&lay, &first.state, &slots, &prior_of(&slots))?;
     let noise0 = noise.clone();
-    let (lof0, mut a_fit) = plain_lack_of_fit(&prob, &cur);
     let significant = lof0.p_value < opts.alpha;
     // Between-configuration variance is either a repeatable resolver error or an effect of
     // the configuration the model misses; the data alone cannot say which (the estimate
@@ -112,13 +112,6 @@ pub fn discover(
     let suspect = |lof: &LackOfFit, noise: &NoiseReport| {
         lof.p_value < opts.alpha || noise.model.repeatable_p < opts.alpha
     };
-    let base_cols: Vec<usize> = (0..slots.len()).collect();
-    let eqs = fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout).with_prior(
-        &prior_of(&slots),
-        &slots,
-        &cur.state,
-    );
-    let (_, gap0) = heldout(&prob, &cur.lin, &eqs, &lay.folds, &base_cols);
     let train0 = train_rms_mm(&prob, &cur.lin.raw);
     let raw_before = cur.lin.raw.clone();
     let mut steps = Vec::new();
@@ -181,23 +174,7 @@ pub fn discover(
             let r = ranges[ci].clone();
             let k = r.len();
             let (ident, drop) = projected_drop(a, g, &a_bb_inv, &g_b, r);
-            let mut score = Score {
-                label: e.label(),
-                name: e.kind.name(),
-                joint: e.joint(),
-                params: k,
-                identifiable: ident,
-                delta_chi2: 0.0,
-                delta_bic: f64::NEG_INFINITY,
-                p_adjusted: 1.0,
-                heldout_gain: None,
-                paired_t: None,
-                rank_p: None,
-                heldout_gap_mm: None,
-                stability: None,
-                passed: false,
-                note: String::new(),
-            };
+            let mut score = Score::untested(e, k, ident);
             if ident == 0 {
                 if steps.is_empty() {
                     not_identifiable.push(score.label.clone());
@@ -516,43 +493,21 @@ pub fn discover(
                     "no start of the refit stays within the model's valid range".into(),
                 ));
             };
-            let (mut prob2, noise2) = problem(&lay, &refit.state, new_slots.len())?;
-            let cur2 = fit::fit_balanced(&mut prob2, &refit.state, &new_slots, &pr)?;
-            let (lof2, a_fit2) = plain_lack_of_fit(&prob2, &cur2);
+            let s2 = complete::settle(&lay, &refit.state, &new_slots, &pr)?;
             // The refitted model must predict held-out configurations better than the model
             // before it, on the same weights: positive and significant (paired over held-out
             // configurations), whatever the linearised scores said.
-            let all_cols = |n: usize| (0..n).collect::<Vec<_>>();
-            let eqs = fold_eqs(&prob2, &cur2.lin, &lay.folds, lay.holdout).with_prior(
-                &pr,
-                &new_slots,
-                &cur2.state,
-            );
-            let (costs_new, g2) = heldout(
-                &prob2,
-                &cur2.lin,
-                &eqs,
-                &lay.folds,
-                &all_cols(new_slots.len()),
-            );
-            let lin_prev = cur.lin.rewhitened(&prob2);
-            let eqs_prev = fold_eqs(&prob2, &lin_prev, &lay.folds, lay.holdout).with_prior(
+            let lin_prev = cur.lin.rewhitened(&s2.prob);
+            let eqs_prev = fold_eqs(&s2.prob, &lin_prev, &lay.folds, lay.holdout).with_prior(
                 &prior_of(&slots),
                 &slots,
                 &cur.state,
             );
-            let (costs_prev, g_prev) = heldout(
-                &prob2,
-                &lin_prev,
-                &eqs_prev,
-                &lay.folds,
-                &all_cols(slots.len()),
-            );
-            let d: Vec<f64> = costs_prev
-                .iter()
-                .zip(&costs_new)
-                .map(|(a, b)| a - b)
-                .collect();
+            let cols_prev: Vec<usize> = (0..slots.len()).collect();
+            let (costs_prev, g_prev) =
+                heldout(&s2.prob, &lin_prev, &eqs_prev, &lay.folds, &cols_prev);
+            let d = drops(&costs_prev, &s2.heldout_costs);
+            let g2 = s2.gap_mm;
             // And judged among the others the data select with it, on the same weights: from
             // a grossly wrong model (several springs missing at once) one spring alone may
             // not predict held-out configurations better — the others' misfit dominates and
@@ -570,14 +525,12 @@ pub fn discover(
                 let mut with = without.clone();
                 with.extend(e.slots());
                 let (c_without, g_without) =
-                    refit_heldout(&prob2, &cur.state, &without, &prior_of(&without), &lay)?;
+                    refit_heldout(&s2.prob, &cur.state, &without, &prior_of(&without), &lay)?;
                 let (c_with, g_with) =
-                    refit_heldout(&prob2, &cur2.state, &with, &prior_of(&with), &lay)?;
+                    refit_heldout(&s2.prob, &s2.cur.state, &with, &prior_of(&with), &lay)?;
                 Some((drops(&c_without, &c_with), g_with, g_without))
             };
-            Ok((
-                prob2, noise2, cur2, lof2, a_fit2, test, alone, g2, g_prev, among,
-            ))
+            Ok((s2, test, alone, g_prev, among))
         };
         let label = e.label();
         let outcome = attempt();
@@ -590,7 +543,7 @@ pub fn discover(
                 }
             }
         };
-        let (prob2, noise2, cur2, lof2, a_fit2, test, alone, g2, g_prev, among) = match outcome {
+        let (s2, test, alone, g_prev, among) = match outcome {
             Ok(o) => o,
             Err(err) => {
                 reject(&mut steps, format!("fit failed: {err}; skipped"));
@@ -598,6 +551,7 @@ pub fn discover(
                 continue;
             }
         };
+        let g2 = s2.gap_mm;
         let with_others = among
             .as_ref()
             .map(|(d, g_with, g_without)| (Paired::new(d, opts.alpha), *g_with, *g_without));
@@ -627,7 +581,15 @@ pub fn discover(
             rejected.push(e);
             continue;
         }
-        (prob, noise, cur, slots, lof, a_fit) = (prob2, noise2, cur2, new_slots, lof2, a_fit2);
+        (prob, noise, cur, slots, lof, a_fit, costs) = (
+            s2.prob,
+            s2.noise,
+            s2.cur,
+            new_slots,
+            s2.lof,
+            s2.a_fit,
+            s2.heldout_costs,
+        );
         found.push((e, gap - g2));
         gap = g2;
         go = suspect(&lof, &noise);
@@ -638,10 +600,10 @@ pub fn discover(
         cur,
         lof,
         a_fit,
+        heldout_costs: costs,
         gap_mm: gap,
     };
-    let (settled, pruned) =
-        prune::prune(&lay, &prior_of, opts, ln_n, &mut found, &mut slots, settled)?;
+    let (settled, pruned) = prune::prune(&lay, &prior_of, opts, &mut found, &mut slots, settled)?;
     // Completion beyond the training torques (see `complete`): a spring without its cubic
     // term, judged on held-out data that reach larger torques than the training data.
     let complete::Settled {
@@ -651,6 +613,7 @@ pub fn discover(
         lof,
         a_fit,
         gap_mm: gap,
+        ..
     } = complete::complete(
         &lay, &prior_of, opts, &mut found, &mut slots, &mut steps, settled,
     )?;

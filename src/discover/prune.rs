@@ -17,11 +17,11 @@ pub(super) fn prune(
     lay: &Layout,
     prior_of: &dyn Fn(&[Slot]) -> fit::Prior,
     opts: &DiscoverOptions,
-    ln_n: f64,
     found: &mut Vec<(Effect, f64)>,
     slots: &mut Vec<Slot>,
     mut st: Settled,
 ) -> Result<(Settled, Vec<String>), DiscoverError> {
+    let ln_n = lay.ln_n();
     let mut pruned: Vec<String> = Vec::new();
     while found.len() > 1 {
         let mut plain = st.prob.clone();
