@@ -212,20 +212,7 @@ mod tests {
     const PERIOD: f64 = 0.002;
 
     fn params() -> LoopParams {
-        LoopParams {
-            period_s: PERIOD,
-            gain: 20.0,
-            torque_source: TorqueSource::Measured,
-            filter_hz: 20.0,
-            torque_constants: [10.0; 6],
-            payload_n: 0.0,
-            payload_com: [0.0; 3],
-            speed: [1.0; 6],
-            acceleration: [2.0; 6],
-            following_error: 0.01,
-            feedback_timeout_s: 0.02,
-            stream_deadline_s: 0.1,
-        }
+        super::test_params()
     }
 
     fn state(q_motor: [f64; 6], current: [f64; 6], stamp_s: f64) -> JointState {

@@ -347,11 +347,6 @@ impl Controller {
         &self.out
     }
 
-    /// The activity as its [`Mode`] code (what recordings persist).
-    pub fn activity_code(&self) -> u8 {
-        self.mode().code()
-    }
-
     /// What the loop is doing, as the recording's one mode table has it.
     pub fn mode(&self) -> Mode {
         match self.activity {

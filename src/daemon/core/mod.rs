@@ -74,7 +74,7 @@ pub struct Core {
     /// The last recording's counters (kept after it stopped, for `status`).
     recorded: Option<Arc<RecorderStats>>,
     /// The activity of the last cycle (recordings log changes).
-    last_code: u8,
+    last_mode: crate::record::Mode,
     /// Where and how recordings are written.
     record_cfg: RecordConfig,
     /// How late the last SYNC went out, µs.
@@ -115,7 +115,7 @@ impl Core {
             lease: None,
             tap: None,
             recorded: None,
-            last_code: 0,
+            last_mode: crate::record::Mode::Holding,
             record_cfg: RecordConfig::default(),
             last_late_us: 0.0,
             last_sample: None,

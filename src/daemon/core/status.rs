@@ -13,7 +13,7 @@ impl Core {
             return;
         };
         let o = *c.output();
-        let code = c.activity_code();
+        let mode = c.mode();
         let sp = c.setpoint().q;
         let counters = self.link.counters();
         let js = self.last.unwrap_or(JointState {
@@ -25,7 +25,7 @@ impl Core {
         let sample = CycleSample {
             stamp_s,
             cycle: self.stats.cycles,
-            activity: code,
+            activity: mode.code(),
             feedback: complete,
             q_motor: js.q_motor,
             current: js.current,
@@ -49,9 +49,8 @@ impl Core {
         tap.push(Record::Cycle(sample));
         let done = tap.until_s.is_some_and(|end| stamp_s >= end);
         // events after the cycle, at its stamp
-        if code != self.last_code {
-            self.last_code = code;
-            let mode = Mode::from_code(code).unwrap_or(Mode::Faulted);
+        if mode != self.last_mode {
+            self.last_mode = mode;
             self.log_event_at(stamp_s, "state", mode.name());
             if mode == Mode::Faulted
                 && let Some(f) = self.fault()

@@ -15,18 +15,11 @@ const PERIOD: f64 = 0.002;
 
 fn core() -> Core {
     let params = LoopParams {
-        period_s: PERIOD,
-        gain: 20.0,
-        torque_source: crate::daemon::vocab::TorqueSource::Measured,
-        filter_hz: 20.0,
         torque_constants: ServoConfig::default().torque_constants,
-        payload_n: 0.0,
-        payload_com: [0.0; 3],
         speed: [0.5; 6],
         acceleration: [1.0; 6],
         following_error: 0.05,
-        feedback_timeout_s: 0.02,
-        stream_deadline_s: 0.1,
+        ..crate::daemon::control::test_params()
     };
     Core::new(Model::nominal(), params, LinkConfig::new(PERIOD, 10), 0.5)
 }
