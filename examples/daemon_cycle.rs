@@ -5,10 +5,7 @@
 //! the cycle statistics `status` reports (wake-up jitter and cycle compute time, p50/p99/max).
 //! BENCHMARKS.md quotes its output.
 
-use std::time::Duration;
-
-use pa10::daemon::api::handle;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 mod common;
 
@@ -25,18 +22,8 @@ fn main() {
     for rate in [500.0, max_rate] {
         let cfg = common::sim_config(rate, "cycle");
         let (_arm, d) = common::start(&cfg);
-        let a = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
-        let b = [0.3, 0.6, 1.3, 0.4, 0.8, 0.5];
-        let end = std::time::Instant::now() + Duration::from_secs_f64(secs);
-        let mut k = 0;
-        while std::time::Instant::now() < end {
-            let q = if k % 2 == 0 { b } else { a };
-            let r = handle(&d.core, &json!({"cmd": "move_joints", "q": q}).to_string());
-            let dur = r["duration_s"].as_f64().unwrap_or(0.5);
-            std::thread::sleep(Duration::from_secs_f64(dur + 0.1));
-            k += 1;
-        }
-        let st: Value = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
+        common::back_and_forth(&d.core, secs);
+        let st: Value = common::status_json(&d.core);
         let c = &st["cycle"];
         let f = common::triple;
         println!(

@@ -14,7 +14,9 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
 use pa10::daemon::api::handle;
-use serde_json::{Value, json};
+use pa10::daemon::runtime::lock;
+use pa10::daemon::wire::{ApiRequest, Reply};
+use serde_json::Value;
 
 mod common;
 
@@ -37,27 +39,26 @@ fn main() {
             let (stop, count) = (stop.clone(), count.clone());
             std::thread::spawn(move || {
                 // the setpoint's own tool pose and one 0.2 mm away along x
-                let st = handle(&shared, r#"{"cmd":"status"}"#)["status"].clone();
-                let p0: Vec<f64> =
-                    serde_json::from_value(st["tool_position"].clone()).expect("tool position");
-                let quat = st["tool_quaternion"].clone();
+                let st = lock(&shared).status();
+                let (p0, quaternion) = (st.tool_position, st.tool_quaternion);
                 let poses = [[p0[0], p0[1], p0[2]], [p0[0] + 2e-4, p0[1], p0[2]]];
                 let mut k = 1;
                 while !stop.load(Ordering::Relaxed) {
                     let p = poses[k % 2];
-                    let r = handle(
-                        &shared,
-                        &json!({"cmd": "move_pose", "position": p, "quaternion": quat}).to_string(),
-                    );
-                    if r["ok"] == true {
-                        count.fetch_add(1, Ordering::Relaxed);
-                        k += 1;
-                    } else if !r["error"]
-                        .as_str()
-                        .is_some_and(|e| e.contains("in progress"))
-                    {
-                        eprintln!("client stops: {r}");
-                        return;
+                    let request = ApiRequest::MovePose {
+                        position: p,
+                        quaternion,
+                    };
+                    match handle(&shared, request) {
+                        Reply::Ok(_) => {
+                            count.fetch_add(1, Ordering::Relaxed);
+                            k += 1;
+                        }
+                        Reply::Refused(e) if e.contains("in progress") => {}
+                        Reply::Refused(e) => {
+                            eprintln!("client stops: {e}");
+                            return;
+                        }
                     }
                     // about half a core: the host keeps one for the loop and the simulator
                     std::thread::sleep(Duration::from_millis(1));
@@ -69,7 +70,7 @@ fn main() {
         if let Some(c) = client {
             c.join().expect("client thread");
         }
-        let st: Value = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
+        let st: Value = common::status_json(&d.core);
         let c = &st["cycle"];
         let f = common::triple;
         println!(

@@ -9,6 +9,7 @@
 use std::time::Duration;
 
 use pa10::daemon::api::handle;
+use pa10::daemon::wire::{ApiRequest, Reply};
 
 mod common;
 
@@ -25,14 +26,18 @@ fn main() {
         let served = common::Served::start(&mut cfg, fifo, &path);
         let core = served.daemon.core.clone();
         if record {
-            let r = handle(&core, r#"{"cmd":"record_start","file":"bench"}"#);
-            assert_eq!(r["ok"], true, "{r}");
+            let start = ApiRequest::RecordStart {
+                file: Some("bench".into()),
+                duration_s: None,
+            };
+            let r = handle(&core, start);
+            assert!(matches!(r, Reply::Ok(_)), "{r:?}");
         }
         common::back_and_forth(&core, secs);
         let st = served.status();
-        let _ = handle(&core, r#"{"cmd":"record_stop"}"#);
+        let _ = handle(&core, ApiRequest::RecordStop {});
         std::thread::sleep(Duration::from_millis(500));
-        let rec = handle(&core, r#"{"cmd":"status"}"#)["status"]["recording"].clone();
+        let rec = common::status_json(&core)["recording"].clone();
         served.stop();
         let c = &st["cycle"];
         println!(

@@ -14,7 +14,6 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use pa10::daemon::api::handle;
 use pa10::daemon::runtime::Daemon;
 use pa10::sim::rig::SimulatedArm;
 use serde_json::Value;
@@ -72,7 +71,7 @@ fn main() {
         for t in busy {
             let _ = t.join();
         }
-        let st: Value = handle(&d.core, r#"{"cmd":"status"}"#)["status"].clone();
+        let st: Value = common::status_json(&d.core);
         let host = host.finish();
         let c = &st["cycle"];
         if fifo && !st["fault"].is_null() {

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use pa10::daemon::config::Config;
+use pa10::daemon::wire::State;
 use pa10::model::{Frame, Model, pose_parts};
 use pa10::sim::rig::Lockstep;
 use serde_json::{Value, json};
@@ -94,16 +95,16 @@ fn lockstep(tag: &str, model: &Model) -> Lockstep {
     assert!(
         ls.run_while_not(
             1.0,
-            |l| l.call(&json!({"cmd": "status"}))["status"]["state"] == "holding"
+            |l| l.call_json(&json!({"cmd": "status"}))["status"]["state"] == "holding"
         ),
         "{}",
-        ls.call(&json!({"cmd": "status"}))
+        ls.call_json(&json!({"cmd": "status"}))
     );
     ls
 }
 
 fn status(ls: &Lockstep) -> Value {
-    ls.call(&json!({"cmd": "status"}))["status"].clone()
+    ls.call_json(&json!({"cmd": "status"}))["status"].clone()
 }
 
 /// Runs until the daemon holds (or faults), at most `timeout_s` of simulated time.
@@ -117,7 +118,7 @@ fn wait_holding(ls: &mut Lockstep, timeout_s: f64) -> Value {
 
 /// Sends `reset` and runs until the daemon holds again (at most 2 s of simulated time).
 fn reset_until_holding(ls: &mut Lockstep) {
-    assert_eq!(ls.call(&json!({"cmd": "reset"}))["ok"], true);
+    assert_eq!(ls.call_json(&json!({"cmd": "reset"}))["ok"], true);
     assert!(
         ls.run_while_not(2.0, |l| status(l)["state"] == "holding"),
         "{}",
@@ -148,7 +149,7 @@ fn drive(model: &Model, load_n: f64) -> f64 {
     let mut ls = lockstep(&format!("drive{}", load_n as u32), model);
     ls.servo.set_load(load_n);
     assert_eq!(
-        ls.call(&json!({"cmd": "set_payload", "newtons": load_n}))["ok"],
+        ls.call_json(&json!({"cmd": "set_payload", "newtons": load_n}))["ok"],
         true
     );
     let truth_base = *ls.servo.truth().model.base_from_instrument();
@@ -157,7 +158,7 @@ fn drive(model: &Model, load_n: f64) -> f64 {
     for target_inst in &ts {
         let target = model.base_from_instrument() * target_inst;
         let (p, q) = pose_parts(&target);
-        let r = ls.call(&json!({"cmd": "move_pose", "position": p, "quaternion": q}));
+        let r = ls.call_json(&json!({"cmd": "move_pose", "position": p, "quaternion": q}));
         assert_eq!(r["ok"], true, "{r}");
         let st = wait_holding(&mut ls, 10.0);
         assert_eq!(st["state"], "holding", "{st}");
@@ -231,7 +232,12 @@ fn bad_requests_are_refused_and_change_nothing_and_estop_needs_reset() {
         } else {
             req.to_string()
         };
-        let r = pa10::daemon::api::handle(&ls.core, &line);
+        // the socket's path: the line parsed (or refused), then handled
+        let r = match pa10::daemon::api::parse(&line) {
+            Ok(request) => pa10::daemon::api::handle(&ls.core, request),
+            Err(refusal) => refusal,
+        };
+        let r = serde_json::to_value(r).unwrap();
         assert_eq!(r["ok"], false, "{req}: {r}");
         assert!(
             r.to_string().len() < 1000,
@@ -244,13 +250,13 @@ fn bad_requests_are_refused_and_change_nothing_and_estop_needs_reset() {
     assert_eq!(after["setpoint"], before);
     // a move cannot start while another runs
     let far = json!({"cmd": "move_joints", "q": [0.3, 0.4, 1.6, 0.0, 1.1, 0.0]});
-    assert_eq!(ls.call(&far)["ok"], true);
+    assert_eq!(ls.call_json(&far)["ok"], true);
     ls.run_for(0.05);
-    let r = ls.call(&json!({"cmd": "move_joints", "q": [0.0, 0.4, 1.6, 0.0, 1.1, 0.0]}));
+    let r = ls.call_json(&json!({"cmd": "move_joints", "q": [0.0, 0.4, 1.6, 0.0, 1.1, 0.0]}));
     assert!(r["error"].as_str().unwrap().contains("in progress"), "{r}");
     assert_eq!(wait_holding(&mut ls, 5.0)["state"], "holding");
     // estop: the servo stops, the daemon reports a fault, moves are refused until reset
-    assert_eq!(ls.call(&json!({"cmd": "estop"}))["ok"], true);
+    assert_eq!(ls.call_json(&json!({"cmd": "estop"}))["ok"], true);
     ls.run_for(0.1);
     let st = status(&ls);
     assert_eq!(st["state"], "fault", "{st}");
@@ -260,15 +266,15 @@ fn bad_requests_are_refused_and_change_nothing_and_estop_needs_reset() {
         "{st}"
     );
     let again = json!({"cmd": "move_joints", "q": [0.1, 0.4, 1.6, 0.0, 1.1, 0.0]});
-    let r = ls.call(&again);
+    let r = ls.call_json(&again);
     assert!(r["error"].as_str().unwrap().contains("reset"), "{r}");
-    assert_eq!(ls.call(&json!({"cmd": "reset"}))["ok"], true);
+    assert_eq!(ls.call_json(&json!({"cmd": "reset"}))["ok"], true);
     // the link re-runs the start-up handshake; the state says so until it is done
     assert_eq!(status(&ls)["state"], "starting");
     assert!(ls.run_while_not(2.0, |l| status(l)["state"] == "holding"));
     let st = status(&ls);
     assert_eq!(st["servo"], "Control", "{st}");
-    assert_eq!(ls.call(&again)["ok"], true);
+    assert_eq!(ls.call_json(&again)["ok"], true);
     assert_eq!(wait_holding(&mut ls, 5.0)["state"], "holding");
 }
 
@@ -306,7 +312,7 @@ fn a_silent_controller_fails_the_start_with_a_precise_error() {
     // every axis muted: the handshake succeeds, the first feedback never completes
     ls.servo.injected.mute_axis = Some(4);
     ls.run_for(1.0);
-    let r = ls.call(&json!({"cmd": "move_joints", "q": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}));
+    let r = ls.call_json(&json!({"cmd": "move_joints", "q": [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]}));
     assert!(
         r["error"]
             .as_str()
@@ -367,7 +373,7 @@ fn a_paused_control_thread_is_not_a_silent_controller() {
     drop(d);
     drop(arm);
     std::fs::remove_dir_all(&dir).unwrap();
-    assert_eq!(after.state, "holding", "{:?}", after.fault);
+    assert_eq!(after.state, State::Holding, "{:?}", after.fault);
     // the pauses happened (most of them delay a cycle past its period)
     assert!(
         after.cycle.overruns >= before.cycle.overruns + 5,
@@ -772,7 +778,7 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
-        String::from_utf8_lossy(&o.stdout).contains("state \"holding\""),
+        String::from_utf8_lossy(&o.stdout).contains("state holding"),
         "{}",
         String::from_utf8_lossy(&o.stdout)
     );
@@ -1020,7 +1026,7 @@ fn a_storm_of_malformed_frames_does_not_crash_the_daemon() {
     // still alive and answering; whatever the rogue frames did is a named state, not a crash
     assert!(st["state"] == "holding" || st["state"] == "fault", "{st}");
     if st["state"] == "fault" {
-        assert_eq!(ls.call(&json!({"cmd": "reset"}))["ok"], true);
+        assert_eq!(ls.call_json(&json!({"cmd": "reset"}))["ok"], true);
     }
 }
 
@@ -1069,7 +1075,7 @@ fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
     // planned, then another client's move runs to completion: the setpoint moved
     let (mv, basis) = plan(&ls, a);
     assert_eq!(
-        ls.call(&json!({"cmd": "move_joints", "q": [0.0, 0.5, 1.6, 0.0, 1.1, 0.0]}))["ok"],
+        ls.call_json(&json!({"cmd": "move_joints", "q": [0.0, 0.5, 1.6, 0.0, 1.1, 0.0]}))["ok"],
         true
     );
     assert_eq!(wait_holding(&mut ls, 5.0)["state"], "holding");
@@ -1087,7 +1093,7 @@ fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
     assert_eq!(wait_holding(&mut ls, 5.0)["state"], "holding");
     // a basis is refused outright while a move runs
     assert_eq!(
-        ls.call(&json!({"cmd": "move_joints", "q": [0.0, 0.4, 1.6, 0.0, 1.1, 0.0]}))["ok"],
+        ls.call_json(&json!({"cmd": "move_joints", "q": [0.0, 0.4, 1.6, 0.0, 1.1, 0.0]}))["ok"],
         true
     );
     ls.run_for(0.01);
@@ -1172,7 +1178,7 @@ fn load_model_reads_only_regular_files_inside_the_model_dir_and_never_echoes_the
     let loaded = Config::load(&config(&dir, &Model::nominal())).unwrap();
     let mut ls = Lockstep::from_config(&loaded).unwrap();
     ls.run_until_ready(1.0).unwrap();
-    let load = |ls: &Lockstep, p: &str| ls.call(&json!({"cmd": "load_model", "path": p}));
+    let load = |ls: &Lockstep, p: &str| ls.call_json(&json!({"cmd": "load_model", "path": p}));
     let secret = "root:x:0:0:root:/root:/bin/bash";
     std::fs::write(dir.join("passwd.yaml"), format!("{secret}\n")).unwrap();
     std::fs::write(dir.join("big.yaml"), vec![b'#'; 2 << 20]).unwrap();

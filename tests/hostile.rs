@@ -57,7 +57,7 @@ fn thousands_of_hostile_requests_change_nothing_while_a_good_client_moves_the_ar
     assert_eq!(moves, 6);
     assert_eq!(refused, 4 * (ROUNDS * requests.len() + 1));
     const { assert!(4 * ROUNDS >= 1000) };
-    let st = ls.call(&json!({"cmd": "status"}))["status"].clone();
+    let st = ls.call_json(&json!({"cmd": "status"}))["status"].clone();
     assert_eq!(st["state"], "holding", "{st}");
     assert_eq!(st["link"]["incomplete"], 0, "{st}");
     let grown = suite::rss_kib().saturating_sub(rss0);

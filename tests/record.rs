@@ -38,7 +38,7 @@ fn lockstep(dir: &Path) -> Lockstep {
 }
 
 fn recording(ls: &Lockstep) -> Value {
-    ls.call(&json!({"cmd": "status"}))["status"]["recording"].clone()
+    ls.call_json(&json!({"cmd": "status"}))["status"]["recording"].clone()
 }
 
 /// Waits (real time, ≤ 10 s) until the writer closed its last file.
@@ -57,12 +57,12 @@ fn finished(ls: &Lockstep) -> Value {
 fn every_cycle_is_recorded_and_read_back_with_its_events() {
     let dir = temp("cycles");
     let mut ls = lockstep(&dir);
-    let r = ls.call(&json!({"cmd": "record_start", "file": "run1", "duration_s": 2.0}));
+    let r = ls.call_json(&json!({"cmd": "record_start", "file": "run1", "duration_s": 2.0}));
     assert_eq!(r["ok"], true, "{r}");
     let path = PathBuf::from(r["path"].as_str().unwrap());
     assert_eq!(path, dir.join("run1.mcap"));
     let mv = json!({"cmd": "move_joints", "q": [0.1, 0.45, 1.55, 0.0, 1.1, -0.1]});
-    assert_eq!(ls.call(&mv)["ok"], true);
+    assert_eq!(ls.call_json(&mv)["ok"], true);
     ls.run_for(3.0);
     let st = finished(&ls);
     assert_eq!(st["active"], false, "{st}");
@@ -183,27 +183,27 @@ fn recording_names_stay_inside_the_folder_and_one_runs_at_a_time() {
     let dir = temp("names");
     let mut ls = lockstep(&dir);
     for bad in ["../x", "/etc/passwd", "a/b", ".hidden", ""] {
-        let r = ls.call(&json!({"cmd": "record_start", "file": bad}));
+        let r = ls.call_json(&json!({"cmd": "record_start", "file": bad}));
         assert!(
             r["error"].as_str().unwrap().contains("plain file name"),
             "{bad}: {r}"
         );
     }
-    let r = ls.call(&json!({"cmd": "record_start", "file": "x", "duration_s": -1.0}));
+    let r = ls.call_json(&json!({"cmd": "record_start", "file": "x", "duration_s": -1.0}));
     assert!(r["error"].as_str().unwrap().contains("duration_s"), "{r}");
     assert_eq!(
-        ls.call(&json!({"cmd": "record_start", "file": "x"}))["ok"],
+        ls.call_json(&json!({"cmd": "record_start", "file": "x"}))["ok"],
         true
     );
-    let r = ls.call(&json!({"cmd": "record_start", "file": "y"}));
+    let r = ls.call_json(&json!({"cmd": "record_start", "file": "y"}));
     assert!(
         r["error"].as_str().unwrap().contains("record_stop first"),
         "{r}"
     );
     ls.run_for(0.2);
-    assert_eq!(ls.call(&json!({"cmd": "record_stop"}))["ok"], true);
+    assert_eq!(ls.call_json(&json!({"cmd": "record_stop"}))["ok"], true);
     finished(&ls);
-    let r = ls.call(&json!({"cmd": "record_start", "file": "x"}));
+    let r = ls.call_json(&json!({"cmd": "record_start", "file": "x"}));
     assert!(r["error"].as_str().unwrap().contains("exists"), "{r}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -269,7 +269,7 @@ fn record_into(open: OpenSink, queue: usize, seconds: f64) -> (Value, Value) {
         .submit(pa10::daemon::core::Command::Record(Box::new(tap)))
         .unwrap();
     let mv = json!({"cmd": "move_joints", "q": [0.1, 0.45, 1.55, 0.0, 1.1, -0.1]});
-    assert_eq!(ls.call(&mv)["ok"], true);
+    assert_eq!(ls.call_json(&mv)["ok"], true);
     let t0 = Instant::now();
     ls.run_for(seconds);
     let wall = t0.elapsed();
@@ -277,13 +277,13 @@ fn record_into(open: OpenSink, queue: usize, seconds: f64) -> (Value, Value) {
         wall < Duration::from_secs(5),
         "the core never waited for the writer: {wall:?}"
     );
-    let st = ls.call(&json!({"cmd": "status"}))["status"].clone();
-    assert_eq!(ls.call(&json!({"cmd": "record_stop"}))["ok"], true);
+    let st = ls.call_json(&json!({"cmd": "status"}))["status"].clone();
+    assert_eq!(ls.call_json(&json!({"cmd": "record_stop"}))["ok"], true);
     let end = Instant::now() + Duration::from_secs(20);
     while !stats.finished.load(Ordering::SeqCst) && Instant::now() < end {
         std::thread::sleep(Duration::from_millis(10));
     }
-    let after = ls.call(&json!({"cmd": "status"}))["status"].clone();
+    let after = ls.call_json(&json!({"cmd": "status"}))["status"].clone();
     std::fs::remove_dir_all(&dir).unwrap();
     (st, after)
 }
@@ -323,7 +323,7 @@ fn still_phases_are_cut_from_a_recording() {
     let dir = temp("still");
     let mut ls = lockstep(&dir);
     assert_eq!(
-        ls.call(&json!({"cmd": "record_start", "file": "still"}))["ok"],
+        ls.call_json(&json!({"cmd": "record_start", "file": "still"}))["ok"],
         true
     );
     let targets = [
@@ -331,14 +331,17 @@ fn still_phases_are_cut_from_a_recording() {
         [0.0, 0.4, 1.6, 0.0, 1.1, 0.0],
     ];
     for q in targets {
-        assert_eq!(ls.call(&json!({"cmd": "move_joints", "q": q}))["ok"], true);
+        assert_eq!(
+            ls.call_json(&json!({"cmd": "move_joints", "q": q}))["ok"],
+            true
+        );
         assert!(ls.run_while_not(
             10.0,
-            |l| l.call(&json!({"cmd": "status"}))["status"]["state"] == "holding"
+            |l| l.call_json(&json!({"cmd": "status"}))["status"]["state"] == "holding"
         ));
         ls.run_for(1.0);
     }
-    assert_eq!(ls.call(&json!({"cmd": "record_stop"}))["ok"], true);
+    assert_eq!(ls.call_json(&json!({"cmd": "record_stop"}))["ok"], true);
     let st = finished(&ls);
     let mut cycles = Vec::new();
     for f in pa10::record::files_of(Path::new(st["path"].as_str().unwrap())) {

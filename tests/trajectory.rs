@@ -23,7 +23,7 @@ fn lockstep(tag: &str, model: &Model) -> Lockstep {
 }
 
 fn status(ls: &Lockstep) -> Value {
-    ls.call(&json!({"cmd": "status"}))["status"].clone()
+    ls.call_json(&json!({"cmd": "status"}))["status"].clone()
 }
 
 fn six(v: &Value) -> [f64; 6] {
@@ -53,10 +53,10 @@ fn six_points() -> Value {
 fn track(model: &Model, load_n: f64) -> (f64, f64) {
     let mut ls = lockstep(&format!("track{load_n}"), model);
     ls.servo.set_load(load_n);
-    let r = ls.call(&json!({"cmd": "set_payload", "newtons": load_n}));
+    let r = ls.call_json(&json!({"cmd": "set_payload", "newtons": load_n}));
     assert_eq!(r["ok"], true, "{r}");
     ls.run_for(0.5); // the measured torques settle
-    let r = ls.call(&json!({"cmd": "follow_trajectory", "points": six_points()}));
+    let r = ls.call_json(&json!({"cmd": "follow_trajectory", "points": six_points()}));
     assert_eq!(r["ok"], true, "{r}");
     let (mut sum, mut peak, mut n) = (0.0, 0.0f64, 0);
     loop {
@@ -119,7 +119,7 @@ fn a_trajectory_is_tracked_by_the_true_link_and_the_calibrated_model_beats_the_n
 fn a_replacing_trajectory_continues_without_a_velocity_jump() {
     let mut ls = lockstep("replace", &Model::nominal());
     let first = json!([{"positions": [0.6, 0.7, 1.2, 0.5, 0.8, 0.6], "time_from_start": 3.0}]);
-    let r = ls.call(&json!({"cmd": "follow_trajectory", "points": first}));
+    let r = ls.call_json(&json!({"cmd": "follow_trajectory", "points": first}));
     assert_eq!(r["ok"], true, "{r}");
     let mut q = Vec::new();
     for k in 0..800 {
@@ -127,7 +127,7 @@ fn a_replacing_trajectory_continues_without_a_velocity_jump() {
             // mid-way, at speed: back where it came from
             let back =
                 json!([{"positions": [0.0, 0.4, 1.6, 0.0, 1.1, 0.0], "time_from_start": 3.0}]);
-            let r = ls.call(&json!({"cmd": "follow_trajectory", "points": back}));
+            let r = ls.call_json(&json!({"cmd": "follow_trajectory", "points": back}));
             assert_eq!(r["ok"], true, "{r}");
             assert_eq!(r["id"], 2);
         }
@@ -187,11 +187,12 @@ fn an_infeasible_trajectory_is_refused_with_the_point_and_joint_and_changes_noth
             "bad request",
         ),
     ] {
-        let r = ls.call(&json!({"cmd": "follow_trajectory", "points": points}));
+        let r = ls.call_json(&json!({"cmd": "follow_trajectory", "points": points}));
         assert_eq!(r["ok"], false, "{r}");
         assert!(r["error"].as_str().unwrap().contains(why), "{r}");
     }
-    let r = ls.call(&json!({"cmd": "follow_trajectory", "points": six_points(), "unknown": 1}));
+    let r =
+        ls.call_json(&json!({"cmd": "follow_trajectory", "points": six_points(), "unknown": 1}));
     assert!(
         r["error"].as_str().unwrap().contains("unknown field"),
         "{r}"
@@ -206,16 +207,16 @@ fn speed_scaling_slows_a_running_trajectory_and_tolerances_abort_it() {
     let mut ls = lockstep("scale", &Model::nominal());
     let pts = json!([{"positions": [0.4, 0.6, 1.3, 0.3, 0.9, 0.4], "time_from_start": 2.0}]);
     assert_eq!(
-        ls.call(&json!({"cmd": "follow_trajectory", "points": pts.clone()}))["ok"],
+        ls.call_json(&json!({"cmd": "follow_trajectory", "points": pts.clone()}))["ok"],
         true
     );
     ls.run_for(0.5);
     for bad in [0.0, 1.5, f64::NAN] {
-        let r = ls.call(&json!({"cmd": "set_speed_scaling", "fraction": bad}));
+        let r = ls.call_json(&json!({"cmd": "set_speed_scaling", "fraction": bad}));
         assert_eq!(r["ok"], false, "{bad}: {r}");
     }
     assert_eq!(
-        ls.call(&json!({"cmd": "set_speed_scaling", "fraction": 0.5}))["ok"],
+        ls.call_json(&json!({"cmd": "set_speed_scaling", "fraction": 0.5}))["ok"],
         true
     );
     let t0 = ls.now();
@@ -226,11 +227,11 @@ fn speed_scaling_slows_a_running_trajectory_and_tolerances_abort_it() {
     assert_eq!(status(&ls)["speed_scaling"], 0.5);
     // a path tolerance no loop can keep: aborted with the reason, a controlled stop
     assert_eq!(
-        ls.call(&json!({"cmd": "set_speed_scaling", "fraction": 1.0}))["ok"],
+        ls.call_json(&json!({"cmd": "set_speed_scaling", "fraction": 1.0}))["ok"],
         true
     );
     let back = json!([{"positions": [0.0, 0.4, 1.6, 0.0, 1.1, 0.0], "time_from_start": 2.0}]);
-    let r = ls.call(
+    let r = ls.call_json(
         &json!({"cmd": "follow_trajectory", "points": back, "path_tolerance": vec![1e-6; 6]}),
     );
     assert_eq!(r["ok"], true, "{r}");
@@ -247,7 +248,7 @@ fn a_servo_stream_that_stops_is_stopped_within_the_deadline() {
     let mut q = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
     for _ in 0..600 {
         q[0] += 0.0005; // 0.25 rad/s
-        let r = ls.call(&json!({"cmd": "servo", "positions": q}));
+        let r = ls.call_json(&json!({"cmd": "servo", "positions": q}));
         assert_eq!(r["ok"], true, "{r}");
         ls.run_for(PERIOD);
     }
@@ -275,12 +276,14 @@ fn a_servo_stream_that_stops_is_stopped_within_the_deadline() {
     );
     assert!(ls.run_while_not(1.0, |l| status(l)["state"] == "holding"));
     // bad setpoints are refused with the joint
-    let r = ls.call(&json!({"cmd": "servo", "positions": [0.0, 9.0, 1.6, 0.0, 1.1, 0.0]}));
+    let r = ls.call_json(&json!({"cmd": "servo", "positions": [0.0, 9.0, 1.6, 0.0, 1.1, 0.0]}));
     assert!(r["error"].as_str().unwrap().contains("joint 2"), "{r}");
-    let r = ls.call(&json!({"cmd": "jog", "joint_velocities": [0.0, 0.0, 0.0, 0.0, 0.0, 9.0]}));
+    let r =
+        ls.call_json(&json!({"cmd": "jog", "joint_velocities": [0.0, 0.0, 0.0, 0.0, 0.0, 9.0]}));
     assert!(r["error"].as_str().unwrap().contains("joint 6"), "{r}");
     // a jog moves at the asked velocity, then stops on its own deadline
-    let r = ls.call(&json!({"cmd": "jog", "joint_velocities": [0.0, 0.0, 0.0, 0.0, 0.0, 0.2]}));
+    let r =
+        ls.call_json(&json!({"cmd": "jog", "joint_velocities": [0.0, 0.0, 0.0, 0.0, 0.0, 0.2]}));
     assert_eq!(r["ok"], true, "{r}");
     let q6 = six(&status(&ls)["setpoint"])[5];
     ls.run_for(0.09);
@@ -293,7 +296,11 @@ fn a_servo_stream_that_stops_is_stopped_within_the_deadline() {
 fn one_commander_at_a_time_with_the_lease() {
     let mut ls = lockstep("lease", &Model::nominal());
     let (a, b) = (101, 102);
-    let ask = |ls: &Lockstep, who, v: Value| handle_from(&ls.core, &v.to_string(), who);
+    // a request in its wire form from connection `who`, answered in the reply's wire form
+    let ask = |ls: &Lockstep, who, v: Value| {
+        let req = serde::Deserialize::deserialize(&v).unwrap();
+        serde_json::to_value(handle_from(&ls.core, req, who)).unwrap()
+    };
     assert_eq!(ask(&ls, a, json!({"cmd": "acquire"}))["ok"], true);
     let mv = json!({"cmd": "move_joints", "q": [0.1, 0.45, 1.55, 0.0, 1.1, -0.1]});
     let r = ask(&ls, b, mv.clone());
@@ -338,7 +345,7 @@ fn lock(ls: &Lockstep) -> pa10::daemon::runtime::CoreGuard<'_> {
 #[test]
 fn payload_by_mass_and_centre_of_mass_and_a_new_tool_take_effect_at_once() {
     let mut ls = lockstep("payload", &Model::nominal());
-    let r = ls.call(&json!({"cmd": "set_payload", "mass_kg": 2.0, "com": [0.1, 0.0, 0.05]}));
+    let r = ls.call_json(&json!({"cmd": "set_payload", "mass_kg": 2.0, "com": [0.1, 0.0, 0.05]}));
     assert_eq!(r["ok"], true, "{r}");
     let st = status(&ls);
     assert!(
@@ -362,12 +369,12 @@ fn payload_by_mass_and_centre_of_mass_and_a_new_tool_take_effect_at_once() {
             "unit",
         ),
     ] {
-        let r = ls.call(&req);
+        let r = ls.call_json(&req);
         assert!(r["error"].as_str().unwrap().contains(why), "{req}: {r}");
     }
     // a longer tool: the reported tool position moves 0.1 m along the tool's z axis
     let before = status(&ls);
-    let r = ls.call(&json!({"cmd": "set_tool", "translation": [0.0, 0.0, 0.1], "quaternion": [1.0, 0.0, 0.0, 0.0]}));
+    let r = ls.call_json(&json!({"cmd": "set_tool", "translation": [0.0, 0.0, 0.1], "quaternion": [1.0, 0.0, 0.0, 0.0]}));
     assert_eq!(r["ok"], true, "{r}");
     let after = status(&ls);
     let p = |v: &Value| -> nalgebra::Vector3<f64> {
@@ -384,10 +391,10 @@ fn payload_by_mass_and_centre_of_mass_and_a_new_tool_take_effect_at_once() {
         "the arm does not move"
     );
     // not during motion
-    let r = ls.call(&json!({"cmd": "move_joints", "q": [0.3, 0.5, 1.4, 0.2, 1.0, 0.3]}));
+    let r = ls.call_json(&json!({"cmd": "move_joints", "q": [0.3, 0.5, 1.4, 0.2, 1.0, 0.3]}));
     assert_eq!(r["ok"], true, "{r}");
     ls.run_for(0.1);
-    let r = ls.call(&json!({"cmd": "set_tool", "translation": [0.0, 0.0, 0.0], "quaternion": [1.0, 0.0, 0.0, 0.0]}));
+    let r = ls.call_json(&json!({"cmd": "set_tool", "translation": [0.0, 0.0, 0.0], "quaternion": [1.0, 0.0, 0.0, 0.0]}));
     assert!(
         r["error"].as_str().unwrap().contains("during a move"),
         "{r}"
@@ -406,7 +413,7 @@ fn a_cartesian_trajectory_keeps_the_tool_on_straight_lines_between_its_waypoints
         {"position": p1, "quaternion": q0, "time_from_start": 2.0},
         {"position": p2, "quaternion": q0, "time_from_start": 4.0},
     ]);
-    let r = ls.call(&json!({"cmd": "follow_cartesian", "points": pts}));
+    let r = ls.call_json(&json!({"cmd": "follow_cartesian", "points": pts}));
     assert_eq!(r["ok"], true, "{r}");
     // distance of a point from the segment a–b, m
     let off = |p: nalgebra::Vector3<f64>, a: [f64; 3], b: [f64; 3]| {
@@ -440,10 +447,10 @@ fn a_cartesian_trajectory_keeps_the_tool_on_straight_lines_between_its_waypoints
         {"position": p1, "quaternion": q0, "time_from_start": 2.0},
         {"position": [3.0, 0.0, 0.5], "quaternion": q0, "time_from_start": 4.0},
     ]);
-    let r = ls.call(&json!({"cmd": "follow_cartesian", "points": far}));
+    let r = ls.call_json(&json!({"cmd": "follow_cartesian", "points": far}));
     assert!(r["error"].as_str().unwrap().contains("waypoint 1,"), "{r}");
     let bad = json!([{"position": p1, "quaternion": [1.0, 1.0, 0.0, 0.0], "time_from_start": 2.0}]);
-    let r = ls.call(&json!({"cmd": "follow_cartesian", "points": bad}));
+    let r = ls.call_json(&json!({"cmd": "follow_cartesian", "points": bad}));
     assert!(r["error"].as_str().unwrap().contains("waypoint 0"), "{r}");
     assert_eq!(status(&ls)["state"], "holding");
 }
@@ -454,7 +461,7 @@ fn a_tool_twist_jog_moves_the_tool_along_the_asked_direction() {
     let model = Model::nominal();
     let f0 = model.fk(&six(&status(&ls)["setpoint"]));
     for _ in 0..20 {
-        let r = ls.call(&json!({"cmd": "jog", "tool_twist": [0.0, 0.0, 0.05, 0.0, 0.0, 0.0]}));
+        let r = ls.call_json(&json!({"cmd": "jog", "tool_twist": [0.0, 0.0, 0.05, 0.0, 0.0, 0.0]}));
         assert_eq!(r["ok"], true, "{r}");
         ls.run_for(0.05);
     }
@@ -468,7 +475,7 @@ fn a_tool_twist_jog_moves_the_tool_along_the_asked_direction() {
         "orientation kept"
     );
     // in the tool frame (pointing along the tool's own z), and refusals
-    let r = ls.call(
+    let r = ls.call_json(
         &json!({"cmd": "jog", "tool_twist": [0.0, 0.0, 0.0, 0.0, 0.0, 0.1], "frame": "tool"}),
     );
     assert_eq!(r["ok"], true, "{r}");
@@ -483,7 +490,7 @@ fn a_tool_twist_jog_moves_the_tool_along_the_asked_direction() {
         ),
         (json!({"cmd": "jog"}), "joint_velocities"),
     ] {
-        let r = ls.call(&req);
+        let r = ls.call_json(&req);
         assert!(r["error"].as_str().unwrap().contains(why), "{req}: {r}");
     }
     assert!(ls.run_while_not(1.0, |l| status(l)["state"] == "holding"));
@@ -502,17 +509,17 @@ fn a_servo_pose_stream_moves_the_tool_to_the_streamed_pose() {
     let goal_q = [0.05, 0.45, 1.55, 0.05, 1.05, 0.05];
     let (p, q) = pa10::model::pose_parts(&model.fk(&goal_q));
     for _ in 0..400 {
-        let r = ls.call(&json!({"cmd": "servo", "position": p, "quaternion": q}));
+        let r = ls.call_json(&json!({"cmd": "servo", "position": p, "quaternion": q}));
         assert_eq!(r["ok"], true, "{r}");
         ls.run_for(PERIOD);
     }
     let sp = six(&status(&ls)["setpoint"]);
     assert!((0..6).all(|j| (sp[j] - goal_q[j]).abs() < 1e-6), "{sp:?}");
-    let r = ls.call(&json!({"cmd": "servo", "position": [3.0, 0.0, 0.5], "quaternion": q}));
+    let r = ls.call_json(&json!({"cmd": "servo", "position": [3.0, 0.0, 0.5], "quaternion": q}));
     assert!(
         r["error"].as_str().unwrap().starts_with("servo pose:"),
         "{r}"
     );
-    let r = ls.call(&json!({"cmd": "servo", "positions": goal_q, "position": p}));
+    let r = ls.call_json(&json!({"cmd": "servo", "positions": goal_q, "position": p}));
     assert!(r["error"].as_str().unwrap().contains("either"), "{r}");
 }

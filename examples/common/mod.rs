@@ -88,7 +88,7 @@ impl Served {
 
     /// The daemon's status now.
     pub fn status(&self) -> Value {
-        pa10::daemon::api::handle(&self.daemon.core, r#"{"cmd":"status"}"#)["status"].clone()
+        status_json(&self.daemon.core)
     }
 
     /// Stops serving, the daemon (the arm at rest first) and the simulated arm.
@@ -98,6 +98,12 @@ impl Served {
         drop(self.daemon);
         drop(self.arm);
     }
+}
+
+/// The status of `core` in its wire form (a JSON value), for the examples' tables.
+pub fn status_json(core: &pa10::daemon::runtime::SharedCore) -> Value {
+    serde_json::to_value(pa10::daemon::api::status_reply(core)).unwrap_or_default()["status"]
+        .clone()
 }
 
 /// The examples' shared start: SECONDS from the first numeric argument (or `default_s`),
@@ -135,9 +141,13 @@ pub fn back_and_forth(core: &pa10::daemon::runtime::SharedCore, secs: f64) -> us
     let mut k = 0;
     while std::time::Instant::now() < end {
         let q = if k % 2 == 0 { b } else { a };
-        let line = serde_json::json!({"cmd": "move_joints", "q": q}).to_string();
-        let r = pa10::daemon::api::handle(core, &line);
-        let dur = r["duration_s"].as_f64().unwrap_or(0.5);
+        let r = pa10::daemon::api::handle(core, pa10::daemon::wire::ApiRequest::MoveJoints { q });
+        let dur = match r {
+            pa10::daemon::wire::Reply::Ok(pa10::daemon::wire::Answer::Moving { duration_s }) => {
+                duration_s
+            }
+            _ => 0.5,
+        };
         std::thread::sleep(std::time::Duration::from_secs_f64(dur + 0.1));
         k += 1;
     }

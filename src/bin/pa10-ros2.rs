@@ -19,7 +19,7 @@
 //! DDS and socket shell, one thread (smol's local executor).
 
 use std::cell::RefCell;
-use std::io::{BufRead, BufReader, Write};
+use std::io::Write;
 use std::os::unix::net::UnixStream;
 use std::path::PathBuf;
 use std::rc::Rc;
@@ -27,10 +27,12 @@ use std::time::Duration;
 
 use anyhow::{Context as _, Result, anyhow, bail};
 use clap::{Parser, ValueEnum};
+use pa10::daemon::api::{Client, ClientError};
+use pa10::daemon::wire::{Answer, ApiRequest, Reply, Status};
 use pa10::ros2::{
     DiagnosticArray, Ending, FollowJointTrajectoryFeedback, FollowJointTrajectoryGoal,
-    FollowJointTrajectoryResult, Header, JOINT_NAMES, JointState, Time, TrajectoryReport,
-    TriggerRequest, TriggerResponse, code,
+    FollowJointTrajectoryResult, Header, JOINT_NAMES, JointState, Time, TriggerRequest,
+    TriggerResponse, code,
 };
 use ros2_client::action::{
     ActionServerQosPolicies, AsyncActionServer, ExecutingGoalHandle, GoalEndStatus,
@@ -40,7 +42,6 @@ use ros2_client::{
     QosProfile, ServiceMapping, ServiceTypeName,
     qos::{Durability, History, WhenFull},
 };
-use serde_json::{Value, json};
 use smol::future::FutureExt as _;
 use smol::io::AsyncBufReadExt as _;
 use smol::{Async, LocalExecutor, Timer};
@@ -91,41 +92,22 @@ const RESULT_WAIT: Duration = Duration::from_secs(60);
 /// Requests to pa10d: a connection per request (goals, cancels and triggers are rare), so
 /// the daemon's idle timeout (300 s) or a broken connection never leaves the bridge with a
 /// dead one.
-struct Daemon {
-    path: PathBuf,
-}
+struct Daemon(Client);
 
 impl Daemon {
-    /// The daemon's answer to `req`: Ok with the answer when `ok`, Err with its words.
-    fn call(&self, req: &Value) -> Result<Value, String> {
-        let io = |e: std::io::Error| format!("pa10d at {}: {e}", self.path.display());
-        let s = UnixStream::connect(&self.path).map_err(io)?;
-        let limit = Some(Duration::from_secs(CALL_TIMEOUT_S));
-        s.set_read_timeout(limit).map_err(io)?;
-        s.set_write_timeout(limit).map_err(io)?;
-        let mut line = req.to_string();
-        line.push('\n');
-        (&s).write_all(line.as_bytes()).map_err(io)?;
-        let mut answer = String::new();
-        BufReader::new(&s).read_line(&mut answer).map_err(io)?;
-        let v: Value = serde_json::from_str(&answer).map_err(|e| {
-            format!(
-                "pa10d answered {} bytes that are not JSON: {e}",
-                answer.len()
-            )
-        })?;
-        if v["ok"] == true {
-            Ok(v)
-        } else {
-            Err(v["error"].as_str().unwrap_or("refused").to_string())
-        }
+    /// The daemon's answer to `req`, or its words (a refusal's, or why it could not answer).
+    fn call(&self, req: &ApiRequest) -> Result<Answer, String> {
+        self.0.call(req).map_err(|e| match e {
+            ClientError::Refused(r) => r.0,
+            e => e.to_string(),
+        })
     }
 }
 
 /// The latest status the subscription brought, and the goal being followed.
 #[derive(Default)]
 struct Shared {
-    status: Option<Value>,
+    status: Option<Status>,
     active: Option<Active>,
 }
 
@@ -192,9 +174,9 @@ fn main() -> Result<()> {
         Mapping::Cyclone => ServiceMapping::Cyclone,
         Mapping::Basic => ServiceMapping::Basic,
     };
-    let daemon = Rc::new(Daemon {
-        path: args.socket.clone(),
-    });
+    let daemon = Rc::new(Daemon(
+        Client::new(&args.socket).with_timeout(Duration::from_secs(CALL_TIMEOUT_S)),
+    ));
     let context =
         Context::with_options(ContextOptions::new().domain_id(domain)).map_err(dds("DDS"))?;
     let mut node = context
@@ -241,25 +223,24 @@ fn joint_states(
     let publisher = publisher::<JointState>(node, "joint_states", "sensor_msgs", "JointState")?;
     let mut s = UnixStream::connect(&args.socket)
         .with_context(|| format!("connecting to pa10d at {}", args.socket.display()))?;
-    s.write_all(format!("{{\"cmd\":\"subscribe\",\"rate_hz\":{}}}\n", args.rate_hz).as_bytes())?;
+    let mut line = serde_json::to_vec(&ApiRequest::Subscribe {
+        rate_hz: args.rate_hz,
+    })?;
+    line.push(b'\n');
+    s.write_all(&line)?;
     let stream = Async::new(s)?;
     Ok(async move {
         let names: Vec<String> = JOINT_NAMES.iter().map(|s| s.to_string()).collect();
         let mut last: Option<(f64, [f64; 6])> = None;
         let mut lines = smol::io::BufReader::new(stream).lines();
         while let Some(line) = smol::stream::StreamExt::next(&mut lines).await {
-            let v: Value = serde_json::from_str(&line?)?;
-            if v["ok"] != true {
-                bail!("pa10d: {}", v["error"]);
-            }
-            let st = v["status"].clone();
-            let t: Option<TrajectoryReport> = serde_json::from_value(st["trajectory"].clone()).ok();
-            let tau: Option<[f64; 6]> = serde_json::from_value(st["tau"].clone()).ok();
-            let time_s = st["time_s"].as_f64().unwrap_or(0.0);
-            shared.borrow_mut().status = Some(st);
-            let (Some(t), Some(tau)) = (t, tau) else {
-                continue;
+            let st = match serde_json::from_str::<Reply>(&line?)? {
+                Reply::Ok(Answer::Status(st)) => *st,
+                Reply::Ok(other) => bail!("pa10d sent {other:?} in the status stream"),
+                Reply::Refused(e) => bail!("pa10d: {e}"),
             };
+            let (t, tau, time_s) = (st.trajectory, st.tau, st.time_s);
+            shared.borrow_mut().status = Some(st);
             // the link estimate (resolver minus the modelled deflection)
             let q = t.actual;
             let velocity = match last {
@@ -402,19 +383,16 @@ async fn goals(
         ) else {
             continue;
         };
-        let current = shared
-            .borrow()
-            .status
-            .as_ref()
-            .and_then(|s| serde_json::from_value::<[f64; 6]>(s["setpoint"].clone()).ok());
+        let current = shared.borrow().status.as_ref().map(|s| s.setpoint);
         let started = match current {
             None => Err((code::INVALID_GOAL, "no status from pa10d yet".to_string())),
             Some(current) => match pa10::ros2::goal_request(&goal, now(), &current) {
                 Err(r) => Err((r.code, r.message)),
                 Ok(req) => match daemon.call(&req) {
-                    Ok(v) => v["id"].as_u64().ok_or((
+                    Ok(Answer::Following { id }) => Ok(id),
+                    Ok(other) => Err((
                         code::INVALID_GOAL,
-                        format!("pa10d answered without an id: {v}"),
+                        format!("pa10d answered without an id: {other:?}"),
                     )),
                     Err(e) => Err((code::INVALID_GOAL, e)),
                 },
@@ -473,7 +451,7 @@ async fn cancels(
             .map(|a| a.handle.goal_id())
             .filter(|id| req.contains_goal(id));
         let canceling = match target {
-            Some(id) => match daemon.call(&json!({"cmd": "stop"})) {
+            Some(id) => match daemon.call(&ApiRequest::Stop {}) {
                 Ok(_) => {
                     if let Some(a) = shared.borrow_mut().active.as_mut() {
                         a.canceling = true;
@@ -507,15 +485,13 @@ async fn monitor(
         Timer::after(MONITOR_PERIOD).await;
         let (handle, ended, report) = {
             let mut sh = shared.borrow_mut();
-            let Some(st) = sh.status.clone() else {
+            let Some(st) = sh.status.as_ref() else {
                 continue;
             };
             let Some(a) = sh.active.as_ref() else {
                 continue;
             };
-            let Ok(t) = serde_json::from_value::<TrajectoryReport>(st["trajectory"].clone()) else {
-                continue;
-            };
+            let t = st.trajectory;
             if t.id < a.id {
                 continue; // the status stream has not seen it start yet
             }
@@ -528,7 +504,7 @@ async fn monitor(
                     },
                 ))
             } else {
-                pa10::ros2::goal_result(&t, a.canceling, st["fault"].as_str())
+                pa10::ros2::goal_result(&t, a.canceling, st.fault.as_deref())
             };
             let handle = a.handle.clone();
             if ended.is_some() {
@@ -569,8 +545,9 @@ fn triggers(
     };
     let (stop, reset) = (make("stop")?, make("reset")?);
     let serve = move |srv: ros2_client::Server<TriggerRequest, TriggerResponse>,
-                      cmd: &'static str| {
+                      req: ApiRequest| {
         let daemon = daemon.clone();
+        let cmd = req.name();
         async move {
             let failed = Failures::default();
             loop {
@@ -578,7 +555,7 @@ fn triggers(
                     Timer::after(AFTER_FAILURE).await;
                     continue;
                 };
-                let resp = match daemon.call(&json!({ "cmd": cmd })) {
+                let resp = match daemon.call(&req) {
                     Ok(_) => TriggerResponse {
                         success: true,
                         message: format!("pa10d: {cmd} done"),
@@ -592,7 +569,7 @@ fn triggers(
             }
         }
     };
-    Ok(serve(stop, "stop").race(serve(reset, "reset")))
+    Ok(serve(stop, ApiRequest::Stop {}).race(serve(reset, ApiRequest::Reset {})))
 }
 
 /// `/diagnostics` once a second from the latest status.

@@ -165,10 +165,21 @@ fn run(path: &Path) -> Result<()> {
             }
         }
         if loaded.record.autostart {
-            let r = pa10::daemon::api::handle(&shared, r#"{"cmd":"record_start"}"#);
-            match r["path"].as_str() {
-                Some(p) => tracing::info!(path = p, "recording every cycle (record.autostart)"),
-                None => tracing::error!(error = %r["error"], "record.autostart: recording did not start"),
+            use pa10::daemon::wire::{Answer, ApiRequest, Reply};
+            let start = ApiRequest::RecordStart {
+                file: None,
+                duration_s: None,
+            };
+            match pa10::daemon::api::handle(&shared, start) {
+                Reply::Ok(Answer::Recording { path }) => {
+                    tracing::info!(%path, "recording every cycle (record.autostart)")
+                }
+                Reply::Refused(error) => {
+                    tracing::error!(%error, "record.autostart: recording did not start")
+                }
+                Reply::Ok(other) => {
+                    tracing::error!(?other, "record.autostart: an unexpected answer")
+                }
             }
         }
         let _ = sd_notify::notify(&[

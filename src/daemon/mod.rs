@@ -2,7 +2,8 @@
 //!
 //! Sans IO, plain functions and state machines on plain data: [`link`] (the host side of the
 //! servo protocol session), [`control`] (one control cycle), [`motion`] (move planning),
-//! [`core`] (link + cycle + client commands + status, one state machine) and [`stats`].
+//! [`core`] (link + cycle + client commands + status, one state machine), [`stats`] and
+//! [`wire`] (the client protocol's request, reply and status types, and their JSON Schema).
 //! At the edges: [`runtime`] (the real-time control thread on a real bus), [`api`] (the
 //! client socket), [`config`] and [`realtime`] (scheduling and memory locking).
 
@@ -18,3 +19,4 @@ pub mod runtime;
 pub mod stats;
 pub mod trajectory;
 pub mod vocab;
+pub mod wire;

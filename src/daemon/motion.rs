@@ -136,7 +136,9 @@ fn ik_step(model: &Model, pose: &Frame, q: &[f64; 6]) -> Result<[f64; 6], String
 }
 
 /// A tool-pose waypoint of `follow_cartesian` (base frame).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 #[serde(deny_unknown_fields)]
 pub struct CartesianPoint {
     /// Tool position, m.

@@ -1,7 +1,8 @@
 //! Cycle statistics without allocation: a fixed-bucket histogram of durations and the
 //! numbers `status` reports about the control loop's timing.
 
-use serde::Serialize;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
 
 /// Histogram of durations in microseconds (fixed buckets, no allocation per sample).
 #[derive(Debug, Clone)]
@@ -55,7 +56,7 @@ impl Histogram {
 }
 
 /// Cycle statistics for `status`.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, JsonSchema, Default)]
 pub struct CycleStats {
     /// Cycles run.
     pub cycles: u64,

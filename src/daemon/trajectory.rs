@@ -23,16 +23,18 @@ const CHECK_SAMPLES: usize = 16;
 const SLACK: f64 = 1e-9;
 
 /// One waypoint (link side).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
+)]
 #[serde(deny_unknown_fields)]
 pub struct TrajectoryPoint {
     /// Joint positions, rad.
     pub positions: [f64; 6],
     /// Joint velocities, rad/s (all points or none).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub velocities: Option<[f64; 6]>,
     /// Joint accelerations, rad/s² (all points or none; only with velocities).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     pub accelerations: Option<[f64; 6]>,
     /// Time of this point from the trajectory's start, s (at speed scaling 1).
     pub time_from_start: f64,

@@ -212,7 +212,7 @@ pub struct RecorderStats {
 }
 
 /// The recording part of `status`.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct RecordingStatus {
     /// Whether cycles are being handed to the writer.
     pub active: bool,

@@ -1,20 +1,18 @@
 //! The pure core of the `pa10-ros2` bridge: the ROS 2 messages it speaks, declared field by
 //! field in the order of their IDL (CDR has no field names, so the order *is* the type), and the
-//! translations between them and `pa10d`'s JSON — a `FollowJointTrajectory` goal into a
-//! `follow_trajectory` request (or the result code and words that refuse it), the daemon's
-//! trajectory status into the action's feedback and result, its status into
-//! `diagnostic_msgs/DiagnosticArray`. No DDS, no sockets, no clock: the binary
+//! translations between them and `pa10d`'s protocol types ([`crate::daemon::wire`]) — a
+//! `FollowJointTrajectory` goal into a `follow_trajectory` request (or the result code and
+//! words that refuse it), the daemon's trajectory status into the action's feedback and
+//! result, its status into `diagnostic_msgs/DiagnosticArray`. No DDS, no sockets, no clock: the binary
 //! (`src/bin/pa10-ros2.rs`, feature `ros2`) passes the time in.
 //!
 //! Units as in ROS: radians, seconds; `builtin_interfaces` times and durations as whole
 //! seconds plus nanoseconds.
 
-use serde::Deserialize;
-use serde_json::{Value, json};
-
 use crate::daemon::api::MAX_LINE_BYTES;
-use crate::daemon::control::Tolerances;
-use crate::daemon::trajectory::MAX_POINTS;
+use crate::daemon::control::{Tolerances, TrajectoryResult, TrajectoryState, TrajectoryStatus};
+use crate::daemon::trajectory::{MAX_POINTS, TrajectoryPoint};
+use crate::daemon::wire::{ApiRequest, State, Status};
 
 pub use msg::*;
 
@@ -167,7 +165,7 @@ pub fn goal_request(
     goal: &FollowJointTrajectoryGoal,
     now: Time,
     current: &[f64; 6],
-) -> Result<Value, GoalRefusal> {
+) -> Result<ApiRequest, GoalRefusal> {
     let m = &goal.multi_dof_trajectory;
     if !m.joint_names.is_empty() || !m.points.is_empty() {
         return refuse(
@@ -255,22 +253,17 @@ pub fn goal_request(
             }
             continue;
         }
-        let mut point = json!({ "positions": q, "time_from_start": nano(tp) });
-        if !p.velocities.is_empty() {
-            point["velocities"] = json!(reorder(
-                &p.velocities,
-                &order,
-                &format!("point {i} velocities")
-            )?);
-        }
-        if !p.accelerations.is_empty() {
-            point["accelerations"] = json!(reorder(
-                &p.accelerations,
-                &order,
-                &format!("point {i} accelerations")
-            )?);
-        }
-        points.push(point);
+        let optional = |v: &[f64], what: &str| {
+            (!v.is_empty())
+                .then(|| reorder(v, &order, &format!("point {i} {what}")))
+                .transpose()
+        };
+        points.push(TrajectoryPoint {
+            positions: q,
+            velocities: optional(&p.velocities, "velocities")?,
+            accelerations: optional(&p.accelerations, "accelerations")?,
+            time_from_start: nano(tp),
+        });
     }
     if points.is_empty() {
         return refuse(
@@ -288,14 +281,14 @@ pub fn goal_request(
         Err(e) => return refuse(code::INVALID_GOAL, format!("goal_time_tolerance: {e}")),
     };
     let n = points.len();
-    let req = json!({
-        "cmd": "follow_trajectory",
-        "points": points,
-        "path_tolerance": path,
-        "goal_tolerance": goal_tol,
-        "goal_time_tolerance": goal_time,
-    });
-    let bytes = req.to_string().len() + 1;
+    let req = ApiRequest::FollowTrajectory {
+        points,
+        path_tolerance: Some(path),
+        goal_tolerance: Some(goal_tol),
+        goal_time_tolerance: Some(goal_time),
+    };
+    // the request's line on the socket, newline included
+    let bytes = serde_json::to_vec(&req).map_or(usize::MAX, |v| v.len() + 1);
     if bytes > MAX_LINE_BYTES {
         return refuse(
             code::INVALID_GOAL,
@@ -306,25 +299,6 @@ pub fn goal_request(
         );
     }
     Ok(req)
-}
-
-/// The daemon's latest trajectory, as `status.trajectory` carries it.
-#[derive(Debug, Clone, PartialEq, Default, Deserialize)]
-pub struct TrajectoryReport {
-    /// Its id (the `id` `follow_trajectory` answered).
-    pub id: u64,
-    /// `idle | executing | succeeded | aborted | preempted`.
-    pub state: String,
-    /// Why it ended.
-    pub result: String,
-    /// Setpoint, rad.
-    pub desired: [f64; 6],
-    /// Link estimate, rad.
-    pub actual: [f64; 6],
-    /// desired − actual, rad.
-    pub error: [f64; 6],
-    /// 0…1.
-    pub progress: f64,
 }
 
 /// How a goal ended, as `action_msgs/GoalStatus` says it.
@@ -342,7 +316,7 @@ pub enum Ending {
 /// `canceling`: the client asked to cancel it (a stop then is the cancel's, not a failure).
 /// `fault`: the daemon's fault text, if any.
 pub fn goal_result(
-    t: &TrajectoryReport,
+    t: &TrajectoryStatus,
     canceling: bool,
     fault: Option<&str>,
 ) -> Option<(Ending, FollowJointTrajectoryResult)> {
@@ -356,10 +330,12 @@ pub fn goal_result(
         error_string: s,
     };
     let (j, e) = worst(&t.error);
-    Some(match (t.state.as_str(), t.result.as_str()) {
-        ("executing", _) | ("idle", _) => return None,
-        ("succeeded", _) => (Ending::Succeeded, r(code::SUCCESSFUL, String::new())),
-        (_, "path_tolerance_violated") => (
+    use TrajectoryResult as R;
+    use TrajectoryState as S;
+    Some(match (t.state, t.result) {
+        (S::Executing | S::Idle, _) => return None,
+        (S::Succeeded, _) => (Ending::Succeeded, r(code::SUCCESSFUL, String::new())),
+        (_, R::PathToleranceViolated) => (
             Ending::Aborted,
             r(
                 code::PATH_TOLERANCE_VIOLATED,
@@ -369,7 +345,7 @@ pub fn goal_result(
                 ),
             ),
         ),
-        (_, "goal_tolerance_violated") => (
+        (_, R::GoalToleranceViolated) => (
             Ending::Aborted,
             r(
                 code::GOAL_TOLERANCE_VIOLATED,
@@ -379,22 +355,22 @@ pub fn goal_result(
                 ),
             ),
         ),
-        (_, "stopped") if canceling => (Ending::Canceled, r(code::SUCCESSFUL, String::new())),
-        ("preempted", _) => (
+        (_, R::Stopped) if canceling => (Ending::Canceled, r(code::SUCCESSFUL, String::new())),
+        (S::Preempted, _) => (
             Ending::Canceled,
             r(
                 code::INVALID_GOAL,
                 "replaced by a newer trajectory, move or stream".into(),
             ),
         ),
-        (_, "fault") => (
+        (_, R::Fault) => (
             Ending::Aborted,
             r(
                 code::INVALID_GOAL,
                 format!("the arm faulted: {}", fault.unwrap_or("(no fault text)")),
             ),
         ),
-        (_, "stopped") => (
+        (_, R::Stopped) => (
             Ending::Aborted,
             r(
                 code::INVALID_GOAL,
@@ -403,7 +379,7 @@ pub fn goal_result(
         ),
         (s, why) => (
             Ending::Aborted,
-            r(code::INVALID_GOAL, format!("ended {s}: {why}")),
+            r(code::INVALID_GOAL, format!("ended {s:?}: {why:?}")),
         ),
     })
 }
@@ -416,7 +392,7 @@ fn point(q: &[f64; 6]) -> JointTrajectoryPoint {
 }
 
 /// The action's feedback for trajectory `t` at wall-clock `now`.
-pub fn feedback(t: &TrajectoryReport, now: Time) -> FollowJointTrajectoryFeedback {
+pub fn feedback(t: &TrajectoryStatus, now: Time) -> FollowJointTrajectoryFeedback {
     FollowJointTrajectoryFeedback {
         header: Header {
             stamp: now,
@@ -430,54 +406,41 @@ pub fn feedback(t: &TrajectoryReport, now: Time) -> FollowJointTrajectoryFeedbac
     }
 }
 
-/// What `/diagnostics` reports about the daemon, from its `status` (JSON) at wall-clock
+/// What `/diagnostics` reports about the daemon, from its [`Status`] at wall-clock
 /// `now`: level ERROR on a fault, WARN while not in control (starting, closed) or when the
 /// loop's p99 wake-up jitter exceeds [`JITTER_WARN_US`], OK otherwise; the loop's, link's and
 /// bus's numbers as key/values.
-pub fn diagnostics(status: &Value, now: Time) -> DiagnosticArray {
-    let state = status["state"].as_str().unwrap_or("unknown");
-    let fault = status["fault"].as_str();
-    let c = &status["cycle"];
-    let p99 = c["jitter_us"][1].as_f64().unwrap_or(0.0);
-    let (level, message) = match (fault, state) {
+pub fn diagnostics(status: &Status, now: Time) -> DiagnosticArray {
+    let state = status.state;
+    let c = &status.cycle;
+    let p99 = c.jitter_us[1];
+    let (level, message) = match (&status.fault, state) {
         (Some(f), _) => (level::ERROR, format!("fault: {f}")),
-        (None, "starting" | "closed" | "unknown") => (level::WARN, state.to_string()),
+        (None, State::Starting | State::Closed) => (level::WARN, state.to_string()),
         (None, _) if p99 > JITTER_WARN_US => (
             level::WARN,
             format!("{state}; p99 wake-up jitter {p99:.0} µs"),
         ),
         (None, _) => (level::OK, state.to_string()),
     };
-    let triple = |v: &Value| {
-        format!(
-            "{:.0} / {:.0} / {:.0}",
-            v[0].as_f64().unwrap_or(0.0),
-            v[1].as_f64().unwrap_or(0.0),
-            v[2].as_f64().unwrap_or(0.0)
-        )
-    };
-    let text = |v: &Value| match v {
-        Value::String(s) => s.clone(),
-        Value::Null => String::new(),
-        v => v.to_string(),
-    };
-    let l = &status["link"];
+    let triple = |v: &[f64; 3]| format!("{:.0} / {:.0} / {:.0}", v[0], v[1], v[2]);
+    let l = &status.link;
     let values = [
-        ("state", text(&status["state"])),
-        ("fault", text(&status["fault"])),
-        ("servo", text(&status["servo"])),
-        ("cycles", text(&c["cycles"])),
-        ("overruns", text(&c["overruns"])),
-        ("jitter p50 / p99 / max [us]", triple(&c["jitter_us"])),
-        ("compute p50 / p99 / max [us]", triple(&c["compute_us"])),
-        ("bus load [%]", text(&c["bus_load_pct"])),
-        ("incomplete feedback cycles", text(&l["incomplete"])),
-        ("host pauses", text(&l["paused"])),
-        ("stale frames", text(&l["stale"])),
-        ("malformed frames", text(&l["malformed"])),
-        ("controller errors", text(&l["controller_errors"])),
-        ("speed scaling", text(&status["speed_scaling"])),
-        ("leased", text(&status["leased"])),
+        ("state", state.to_string()),
+        ("fault", status.fault.clone().unwrap_or_default()),
+        ("servo", status.servo.clone().unwrap_or_default()),
+        ("cycles", c.cycles.to_string()),
+        ("overruns", c.overruns.to_string()),
+        ("jitter p50 / p99 / max [us]", triple(&c.jitter_us)),
+        ("compute p50 / p99 / max [us]", triple(&c.compute_us)),
+        ("bus load [%]", c.bus_load_pct.to_string()),
+        ("incomplete feedback cycles", l.incomplete.to_string()),
+        ("host pauses", l.paused.to_string()),
+        ("stale frames", l.stale.to_string()),
+        ("malformed frames", l.malformed.to_string()),
+        ("controller errors", l.controller_errors.to_string()),
+        ("speed scaling", status.speed_scaling.to_string()),
+        ("leased", status.leased.to_string()),
     ]
     .into_iter()
     .map(|(k, v)| KeyValue {

@@ -2,6 +2,20 @@
 
 use super::*;
 
+/// A `follow_trajectory` request's parts: points, path and goal tolerances (rad), goal time
+/// tolerance (s).
+fn follow(r: ApiRequest) -> (Vec<TrajectoryPoint>, [f64; 6], [f64; 6], f64) {
+    match r {
+        ApiRequest::FollowTrajectory {
+            points,
+            path_tolerance: Some(p),
+            goal_tolerance: Some(g),
+            goal_time_tolerance: Some(t),
+        } => (points, p, g, t),
+        other => panic!("not a follow_trajectory with its tolerances: {other:?}"),
+    }
+}
+
 fn names(order: [usize; 6]) -> Vec<String> {
     order.iter().map(|&j| JOINT_NAMES[j].to_string()).collect()
 }
@@ -35,15 +49,13 @@ const Q1: [f64; 6] = [0.1, 0.5, 1.5, 0.1, 1.0, 0.2];
 fn a_moveit_goal_in_any_joint_order_becomes_the_arms_order_without_its_start_state() {
     let order = [3, 1, 5, 0, 2, 4];
     let g = goal(order, &[(Q0, 0.0), (Q1, 2.0)]);
-    let r = goal_request(&g, NOW, &Q0).unwrap();
-    assert_eq!(r["cmd"], "follow_trajectory");
-    assert_eq!(r["points"].as_array().unwrap().len(), 1);
-    let q: [f64; 6] = serde_json::from_value(r["points"][0]["positions"].clone()).unwrap();
-    assert_eq!(q, Q1);
-    assert_eq!(r["points"][0]["time_from_start"], 2.0);
-    assert_eq!(r["goal_tolerance"], json!([0.005f64; 6].to_vec()));
-    assert_eq!(r["path_tolerance"], json!([0.0f64; 6].to_vec()));
-    assert_eq!(r["goal_time_tolerance"], 1.0);
+    let (points, path, goal, goal_time) = follow(goal_request(&g, NOW, &Q0).unwrap());
+    assert_eq!(points.len(), 1);
+    assert_eq!(points[0].positions, Q1);
+    assert_eq!(points[0].time_from_start, 2.0);
+    assert_eq!(goal, [0.005; 6]);
+    assert_eq!(path, [0.0; 6]);
+    assert_eq!(goal_time, 1.0);
 }
 
 #[test]
@@ -60,13 +72,10 @@ fn tolerances_by_name_with_zero_default_and_minus_one_unchecked() {
         sec: 2,
         nanosec: 500_000_000,
     };
-    let r = goal_request(&g, NOW, &Q0).unwrap();
-    assert_eq!(r["path_tolerance"], json!([0.0, 0.0, 0.05, 0.0, 0.0, 0.0]));
-    assert_eq!(
-        r["goal_tolerance"],
-        json!([0.005, 0.0, 0.005, 0.005, 0.005, 0.005])
-    );
-    assert_eq!(r["goal_time_tolerance"], 2.5);
+    let (_, path, goal, goal_time) = follow(goal_request(&g, NOW, &Q0).unwrap());
+    assert_eq!(path, [0.0, 0.0, 0.05, 0.0, 0.0, 0.0]);
+    assert_eq!(goal, [0.005, 0.0, 0.005, 0.005, 0.005, 0.005]);
+    assert_eq!(goal_time, 2.5);
 }
 
 #[test]
@@ -153,11 +162,11 @@ fn refusals_carry_the_code_and_name_what_is_wrong() {
     assert!(goal_request(&g, NOW, &Q0).is_ok());
 }
 
-fn report(state: &str, result: &str) -> TrajectoryReport {
-    TrajectoryReport {
+fn report(state: TrajectoryState, result: TrajectoryResult) -> TrajectoryStatus {
+    TrajectoryStatus {
         id: 3,
-        state: state.into(),
-        result: result.into(),
+        state,
+        result,
         error: [0.0, -0.02, 0.001, 0.0, 0.0, 0.0],
         ..Default::default()
     }
@@ -165,53 +174,58 @@ fn report(state: &str, result: &str) -> TrajectoryReport {
 
 #[test]
 fn every_ending_has_its_status_and_code() {
-    assert_eq!(goal_result(&report("executing", ""), false, None), None);
+    use TrajectoryResult as R;
+    use TrajectoryState as S;
+    assert_eq!(
+        goal_result(&report(S::Executing, R::Running), false, None),
+        None
+    );
     let cases = [
         (
-            "succeeded",
-            "succeeded",
+            S::Succeeded,
+            R::Succeeded,
             false,
             Ending::Succeeded,
             code::SUCCESSFUL,
         ),
         (
-            "aborted",
-            "path_tolerance_violated",
+            S::Aborted,
+            R::PathToleranceViolated,
             false,
             Ending::Aborted,
             code::PATH_TOLERANCE_VIOLATED,
         ),
         (
-            "aborted",
-            "goal_tolerance_violated",
+            S::Aborted,
+            R::GoalToleranceViolated,
             false,
             Ending::Aborted,
             code::GOAL_TOLERANCE_VIOLATED,
         ),
         (
-            "aborted",
-            "stopped",
+            S::Aborted,
+            R::Stopped,
             true,
             Ending::Canceled,
             code::SUCCESSFUL,
         ),
         (
-            "aborted",
-            "stopped",
+            S::Aborted,
+            R::Stopped,
             false,
             Ending::Aborted,
             code::INVALID_GOAL,
         ),
         (
-            "preempted",
-            "preempted",
+            S::Preempted,
+            R::Preempted,
             false,
             Ending::Canceled,
             code::INVALID_GOAL,
         ),
         (
-            "aborted",
-            "fault",
+            S::Aborted,
+            R::Fault,
             false,
             Ending::Aborted,
             code::INVALID_GOAL,
@@ -219,21 +233,49 @@ fn every_ending_has_its_status_and_code() {
     ];
     for (state, why, canceling, ending, c) in cases {
         let (e, r) = goal_result(&report(state, why), canceling, Some("watchdog")).unwrap();
-        assert_eq!((e, r.error_code), (ending, c), "{state}/{why}");
+        assert_eq!((e, r.error_code), (ending, c), "{state:?}/{why:?}");
     }
-    let (_, r) = goal_result(&report("aborted", "path_tolerance_violated"), false, None).unwrap();
+    let (_, r) = goal_result(&report(S::Aborted, R::PathToleranceViolated), false, None).unwrap();
     assert!(
         r.error_string.contains("pa10_joint_2: error -0.02000 rad"),
         "{r:?}"
     );
-    let (_, r) = goal_result(&report("aborted", "fault"), false, Some("watchdog")).unwrap();
+    let (_, r) = goal_result(&report(S::Aborted, R::Fault), false, Some("watchdog")).unwrap();
     assert!(r.error_string.contains("watchdog"), "{r:?}");
+}
+
+/// A status with `state`, `fault` and the wake-up jitter p50 / p99 / max (µs).
+fn status(state: State, fault: Option<&str>, jitter_us: [f64; 3]) -> Status {
+    Status {
+        state,
+        fault: fault.map(str::to_owned),
+        servo: None,
+        setpoint: [0.0; 6],
+        q_motor: [0.0; 6],
+        current: [0.0; 6],
+        time_s: 0.0,
+        tau: [0.0; 6],
+        tool_position: [0.0; 3],
+        tool_quaternion: [1.0, 0.0, 0.0, 0.0],
+        payload_n: 0.0,
+        payload_com: [0.0; 3],
+        link: Default::default(),
+        cycle: crate::daemon::stats::CycleStats {
+            cycles: 10,
+            jitter_us,
+            ..Default::default()
+        },
+        trajectory: Default::default(),
+        speed_scaling: 1.0,
+        stream_end: None,
+        leased: false,
+        recording: None,
+    }
 }
 
 #[test]
 fn diagnostics_rate_the_daemon() {
-    let st = json!({"state":"holding","fault":null,"cycle":{"cycles":10,"jitter_us":[50,100,300]},"link":{}});
-    let d = diagnostics(&st, NOW);
+    let d = diagnostics(&status(State::Holding, None, [50.0, 100.0, 300.0]), NOW);
     assert_eq!(d.status[0].level, level::OK);
     assert!(
         d.status[0]
@@ -241,13 +283,13 @@ fn diagnostics_rate_the_daemon() {
             .iter()
             .any(|kv| kv.key == "cycles" && kv.value == "10")
     );
-    let st = json!({"state":"fault","fault":"servo controller: watchdog","cycle":{},"link":{}});
+    let st = status(State::Fault, Some("servo controller: watchdog"), [0.0; 3]);
     let d = diagnostics(&st, NOW);
     assert_eq!(d.status[0].level, level::ERROR);
     assert!(d.status[0].message.contains("watchdog"));
-    let st = json!({"state":"holding","fault":null,"cycle":{"jitter_us":[50,900,3000]},"link":{}});
+    let st = status(State::Holding, None, [50.0, 900.0, 3000.0]);
     assert_eq!(diagnostics(&st, NOW).status[0].level, level::WARN);
-    let st = json!({"state":"starting","fault":null,"cycle":{},"link":{}});
+    let st = status(State::Starting, None, [0.0; 3]);
     assert_eq!(diagnostics(&st, NOW).status[0].level, level::WARN);
 }
 
@@ -274,9 +316,9 @@ fn a_goal_too_long_for_one_request_line_is_refused_by_its_size() {
         g
     };
     let r = goal_request(&plan(200), NOW, &Q0).unwrap();
-    assert!(r.to_string().len() < MAX_LINE_BYTES);
+    assert!(serde_json::to_vec(&r).unwrap().len() < MAX_LINE_BYTES);
     // sent to 1e-9
-    assert_eq!(r["points"][0]["velocities"][0], 0.123_456_789);
+    assert_eq!(follow(r).0[0].velocities.unwrap()[0], 0.123_456_789);
     let e = goal_request(&plan(MAX_POINTS + 1), NOW, &Q0).unwrap_err();
     assert_eq!(e.code, code::INVALID_GOAL);
     assert!(

@@ -22,7 +22,9 @@ use crate::can::{VirtualBus, VirtualConfig, VirtualEndpoint};
 use crate::daemon::config::{Loaded, SimConfig};
 use crate::daemon::core::Core;
 use crate::daemon::runtime::lock;
+use crate::daemon::wire::{ApiRequest, Reply};
 use crate::model::{Model, ModelError, frame_from_pose};
+use serde::Deserialize as _;
 
 /// Where the simulated arm's motors start, rad.
 pub const HOME: [f64; 6] = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
@@ -272,8 +274,19 @@ impl Lockstep {
         }
     }
 
-    /// One API request (a JSON value), answered by the daemon's request handler.
-    pub fn call(&self, request: &serde_json::Value) -> serde_json::Value {
-        crate::daemon::api::handle(&self.core, &request.to_string())
+    /// One API request, answered by the daemon's request handler.
+    pub fn call(&self, request: ApiRequest) -> Reply {
+        crate::daemon::api::handle(&self.core, request)
+    }
+
+    /// One API request in its wire form (a JSON value), answered in the reply's wire form:
+    /// what a client of the socket sends and reads, for tests that check the JSON itself. A
+    /// value that is not a request is answered with the socket's `bad request` refusal.
+    pub fn call_json(&self, request: &serde_json::Value) -> serde_json::Value {
+        let reply = match ApiRequest::deserialize(request) {
+            Ok(r) => self.call(r),
+            Err(e) => Reply::Refused(format!("bad request: {e}")),
+        };
+        serde_json::to_value(reply).unwrap_or_default()
     }
 }

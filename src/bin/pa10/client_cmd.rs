@@ -1,15 +1,14 @@
 //! The daemon client: `pa10 status`, `pa10 move joints|pose`, `pa10 stop|estop|reset`,
-//! `pa10 payload`, `pa10 load-model`, `pa10 watch` — one JSON request per call over the
-//! daemon's Unix socket (docs/api.md).
+//! `pa10 payload`, `pa10 load-model`, `pa10 watch` — one request per call over the daemon's
+//! Unix socket (docs/api.md), in the protocol's types (`pa10::daemon::wire`).
 
-use std::io::{BufRead, BufReader, Write};
-use std::os::unix::net::UnixStream;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use clap::{Args, Subcommand};
-use serde_json::{Value, json};
+use pa10::daemon::api::Client;
+use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
 
 /// Where the daemon listens.
 #[derive(Debug, Args, Clone)]
@@ -57,33 +56,17 @@ pub enum MoveCmd {
 }
 
 impl Conn {
-    /// The daemon's API socket.
-    pub fn socket(&self) -> &std::path::Path {
-        &self.socket
+    /// A client of that socket.
+    pub fn client(&self) -> Client {
+        Client::new(&self.socket)
     }
 }
 
-fn send(c: &Conn, req: &Value) -> Result<Value> {
-    let mut s = UnixStream::connect(&c.socket).with_context(|| {
-        format!(
-            "connecting to pa10d at {} (is it running?)",
-            c.socket.display()
-        )
-    })?;
-    s.set_read_timeout(Some(Duration::from_secs(10)))?;
-    s.write_all(format!("{req}\n").as_bytes())?;
-    let mut line = String::new();
-    BufReader::new(s)
-        .read_line(&mut line)
-        .context("reading the daemon's answer")?;
-    serde_json::from_str(&line).context("the daemon's answer is not JSON")
-}
-
-/// A way to send the daemon one JSON request and get its answer, and the clock the daemon
-/// runs on (real time, or the simulated time of `pa10 demo`).
+/// A way to send the daemon one request and get its reply, and the clock the daemon runs on
+/// (real time, or the simulated time of `pa10 demo`).
 pub trait Api {
-    /// Sends `req`, returns the daemon's answer (any `ok`).
-    fn call(&mut self, req: Value) -> Result<Value>;
+    /// Sends `req`, returns the daemon's reply (a refusal included).
+    fn send(&mut self, req: ApiRequest) -> Result<Reply>;
     /// Lets `d` pass on the daemon's clock.
     fn pause(&mut self, d: Duration) {
         std::thread::sleep(d);
@@ -99,8 +82,8 @@ pub trait Api {
 pub struct Socket(pub Conn);
 
 impl Api for Socket {
-    fn call(&mut self, req: Value) -> Result<Value> {
-        send(&self.0, &req)
+    fn send(&mut self, req: ApiRequest) -> Result<Reply> {
+        Ok(self.0.client().send(&req)?)
     }
 }
 
@@ -109,8 +92,8 @@ impl Api for Socket {
 pub struct Simulated(pub pa10::sim::rig::Lockstep);
 
 impl Api for Simulated {
-    fn call(&mut self, req: Value) -> Result<Value> {
-        Ok(self.0.call(&req))
+    fn send(&mut self, req: ApiRequest) -> Result<Reply> {
+        Ok(self.0.call(req))
     }
     fn pause(&mut self, d: Duration) {
         self.0.run_for(d.as_secs_f64());
@@ -121,56 +104,79 @@ impl Api for Simulated {
 }
 
 /// Sends `req`; a refusal is an error with the daemon's reason.
-pub fn checked(api: &mut dyn Api, req: Value) -> Result<Value> {
-    let v = api.call(req)?;
-    if v["ok"] != true {
-        bail!(
-            "pa10d refused: {}",
-            v["error"].as_str().unwrap_or("unknown error")
-        );
+pub fn checked(api: &mut dyn Api, req: ApiRequest) -> Result<Answer> {
+    match api.send(req)? {
+        Reply::Ok(a) => Ok(a),
+        Reply::Refused(e) => bail!("pa10d refused: {e}"),
     }
-    Ok(v)
 }
 
-fn print_status(c: &Conn, v: &Value) {
-    if c.json {
-        println!("{v}");
-        return;
+/// The daemon's status.
+pub fn status_of(api: &mut dyn Api) -> Result<Status> {
+    match checked(api, ApiRequest::Status {})? {
+        Answer::Status(s) => Ok(*s),
+        other => bail!("pa10d answered status with {other:?}"),
     }
-    let s = &v["status"];
+}
+
+/// The planned move's duration, s, from a move's answer.
+pub fn duration_of(a: &Answer) -> Result<f64> {
+    match a {
+        Answer::Moving { duration_s } => Ok(*duration_s),
+        other => bail!("pa10d answered a move with {other:?}"),
+    }
+}
+
+/// Prints a reply as the socket carries it (`--json`).
+pub fn print_json(reply: &Reply) -> Result<()> {
+    println!("{}", serde_json::to_string(reply)?);
+    Ok(())
+}
+
+fn print_status(c: &Conn, s: &Status) -> Result<()> {
+    if c.json {
+        return print_json(&Reply::Ok(Answer::Status(Box::new(s.clone()))));
+    }
     println!(
         "state {} (servo {}){}",
-        s["state"],
-        s["servo"],
-        s["fault"]
-            .as_str()
+        s.state,
+        s.servo.as_deref().unwrap_or("unknown"),
+        s.fault
+            .as_ref()
             .map(|f| format!(": {f}"))
             .unwrap_or_default()
     );
     println!(
-        "tool  position {} m, quaternion {}",
-        s["tool_position"], s["tool_quaternion"]
+        "tool  position {:?} m, quaternion {:?}",
+        s.tool_position, s.tool_quaternion
     );
-    println!("joints (setpoint, rad) {}", s["setpoint"]);
-    println!("payload {} N; cycle {}", s["payload_n"], s["cycle"]);
+    println!("joints (setpoint, rad) {:?}", s.setpoint);
+    println!(
+        "payload {} N; cycle {}",
+        s.payload_n,
+        serde_json::to_string(&s.cycle)?
+    );
+    Ok(())
 }
 
 /// `pa10 status`.
 pub fn status(c: &Conn) -> Result<()> {
-    let v = checked(&mut Socket(c.clone()), json!({"cmd": "status"}))?;
-    print_status(c, &v);
-    Ok(())
+    let s = status_of(&mut Socket(c.clone()))?;
+    print_status(c, &s)
 }
 
-/// Polls `status` until the arm holds; returns that answer. A fault, or no rest within
+/// Polls `status` until the arm holds; returns that status. A fault, or no rest within
 /// `timeout`, is an error.
-pub fn wait_settled(api: &mut dyn Api, timeout: Duration) -> Result<Value> {
+pub fn wait_settled(api: &mut dyn Api, timeout: Duration) -> Result<Status> {
     let end = api.clock_s() + timeout.as_secs_f64();
     loop {
-        let v = checked(api, json!({"cmd": "status"}))?;
-        match v["status"]["state"].as_str() {
-            Some("holding") => return Ok(v),
-            Some("fault") => bail!("the move ended in a fault: {}", v["status"]["fault"]),
+        let s = status_of(api)?;
+        match s.state {
+            State::Holding => return Ok(s),
+            State::Fault => bail!(
+                "the move ended in a fault: {}",
+                s.fault.as_deref().unwrap_or("(no fault text)")
+            ),
             _ if api.clock_s() > end => {
                 bail!("the move did not settle within {} s", timeout.as_secs())
             }
@@ -181,57 +187,60 @@ pub fn wait_settled(api: &mut dyn Api, timeout: Duration) -> Result<Value> {
 
 /// `pa10 move …`.
 pub fn move_cmd(c: &Conn, m: &MoveCmd) -> Result<()> {
+    let six = |v: &[f64]| -> Result<[f64; 6]> {
+        v.try_into()
+            .map_err(|_| anyhow::anyhow!("6 joint angles, got {}", v.len()))
+    };
     let (req, wait) = match m {
         MoveCmd::Joints { q, deg, wait } => {
             let q: Vec<f64> = q
                 .iter()
                 .map(|v| if *deg { v.to_radians() } else { *v })
                 .collect();
-            (json!({"cmd": "move_joints", "q": q}), *wait)
+            (ApiRequest::MoveJoints { q: six(&q)? }, *wait)
         }
         MoveCmd::Pose { pose, wait } => (
-            json!({"cmd": "move_pose", "position": &pose[..3], "quaternion": &pose[3..]}),
+            ApiRequest::MovePose {
+                position: [pose[0], pose[1], pose[2]],
+                quaternion: [pose[3], pose[4], pose[5], pose[6]],
+            },
             *wait,
         ),
     };
     let api = &mut Socket(c.clone());
-    let v = checked(api, req)?;
-    let d = v["duration_s"].as_f64().unwrap_or(0.0);
+    let a = checked(api, req)?;
+    let d = duration_of(&a)?;
     if !wait {
         if c.json {
-            println!("{v}");
+            print_json(&Reply::Ok(a))?;
         } else {
             println!("moving, {d:.2} s");
         }
         return Ok(());
     }
-    let v = wait_settled(api, Duration::from_secs_f64(d + 10.0))?;
-    print_status(c, &v);
-    Ok(())
+    let s = wait_settled(api, Duration::from_secs_f64(d + 10.0))?;
+    print_status(c, &s)
 }
 
 /// `pa10 stop|estop|reset|payload|load-model`: one request, `ok` or the refusal.
-pub fn simple(c: &Conn, req: Value) -> Result<()> {
-    let v = checked(&mut Socket(c.clone()), req)?;
+pub fn simple(c: &Conn, req: ApiRequest) -> Result<()> {
+    let a = checked(&mut Socket(c.clone()), req)?;
     if c.json {
-        println!("{v}");
+        print_json(&Reply::Ok(a))
     } else {
         println!("ok");
+        Ok(())
     }
-    Ok(())
 }
 
 /// `pa10 watch`: the status stream.
 pub fn watch(c: &Conn, rate_hz: f64) -> Result<()> {
-    let mut s = UnixStream::connect(&c.socket)
-        .with_context(|| format!("connecting to {}", c.socket.display()))?;
-    s.write_all(format!("{}\n", json!({"cmd": "subscribe", "rate_hz": rate_hz})).as_bytes())?;
-    for line in BufReader::new(s).lines() {
-        let v: Value = serde_json::from_str(&line?)?;
-        if v["ok"] != true {
-            bail!("pa10d refused: {}", v["error"]);
+    for reply in c.client().subscribe(rate_hz)? {
+        match reply? {
+            Reply::Ok(Answer::Status(s)) => print_status(c, &s)?,
+            Reply::Ok(other) => bail!("pa10d sent {other:?} in a status stream"),
+            Reply::Refused(e) => bail!("pa10d refused: {e}"),
         }
-        print_status(c, &v);
     }
     Ok(())
 }

@@ -1,7 +1,7 @@
 //! `pa10 collect`: drive the daemon through a pose list and record resolver angles and motor
 //! currents per pose; merge them with the instrument's measurements into a dataset. The
 //! sampling helpers here are shared with `pa10 demo`, which talks to an in-process daemon
-//! through the same JSON requests ([`crate::client_cmd::Api`]).
+//! through the same typed requests ([`crate::client_cmd::Api`]).
 
 use std::io::BufRead;
 use std::path::PathBuf;
@@ -10,29 +10,28 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
 use pa10::calib::collect::{self, RobotSample};
-use serde_json::{Value, json};
+use pa10::daemon::wire::ApiRequest;
 
-use crate::client_cmd::{Api, Conn, Socket, checked, wait_settled};
+use crate::client_cmd::{Api, Conn, Socket, checked, duration_of, status_of, wait_settled};
 
 /// Sends a move and waits until it settles.
-pub fn move_wait(api: &mut dyn Api, req: Value) -> Result<()> {
-    let v = checked(api, req)?;
-    let d = v["duration_s"].as_f64().unwrap_or(0.0);
+pub fn move_wait(api: &mut dyn Api, req: ApiRequest) -> Result<()> {
+    let d = duration_of(&checked(api, req)?)?;
     wait_settled(api, Duration::from_secs_f64(d + 10.0))?;
     Ok(())
 }
 
-/// Six numbers from a JSON array.
-pub fn arr6(v: &Value) -> Result<[f64; 6]> {
-    let a = v
-        .as_array()
-        .filter(|a| a.len() == 6)
-        .context("expected six numbers")?;
-    let mut out = [0.0; 6];
-    for (o, x) in out.iter_mut().zip(a) {
-        *o = x.as_f64().context("expected a number")?;
-    }
-    Ok(out)
+/// Tells the daemon the payload's weight, N (centre of mass at the tool origin).
+pub fn set_payload(api: &mut dyn Api, newtons: f64) -> Result<()> {
+    checked(
+        api,
+        ApiRequest::SetPayload {
+            newtons: Some(newtons),
+            mass_kg: None,
+            com: None,
+        },
+    )?;
+    Ok(())
 }
 
 /// Waits until the resolvers stop moving (no joint changes by more than one count, 2π/(16384·50)
@@ -58,8 +57,8 @@ pub fn wait_still(api: &mut dyn Api, min: Duration, max: Duration) -> Result<()>
 
 /// One robot-side sample: resolver angles (rad) and motor currents (A) from `status`.
 pub fn sample(api: &mut dyn Api) -> Result<([f64; 6], [f64; 6])> {
-    let st = checked(api, json!({"cmd": "status"}))?["status"].clone();
-    Ok((arr6(&st["q_motor"])?, arr6(&st["current"])?))
+    let st = status_of(api)?;
+    Ok((st.q_motor, st.current))
 }
 
 /// `pa10 collect …`
@@ -211,7 +210,7 @@ fn collect_run(a: &RunArgs) -> Result<()> {
     let stdin = std::io::stdin();
     for (k, p) in poses.iter().enumerate() {
         if p.load_n != load {
-            checked(&mut api, json!({"cmd": "set_payload", "newtons": p.load_n}))?;
+            set_payload(&mut api, p.load_n)?;
             if !a.yes {
                 eprintln!("hang {} N at the tool, then press Enter", p.load_n);
                 let mut line = String::new();
@@ -219,7 +218,7 @@ fn collect_run(a: &RunArgs) -> Result<()> {
             }
             load = p.load_n;
         }
-        move_wait(&mut api, json!({"cmd": "move_joints", "q": p.q}))
+        move_wait(&mut api, ApiRequest::MoveJoints { q: p.q })
             .with_context(|| format!("pose `{}`", p.config_id))?;
         wait_still(&mut api, settle, settle * 4)?;
         for _ in 0..a.samples {

@@ -13,13 +13,13 @@ use pa10::calib::dataset::{Dataset, Effort, Meta, Row};
 use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
 use pa10::daemon::config::Config;
 
+use pa10::daemon::wire::ApiRequest;
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
 use pa10::sim::rig::Lockstep;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use serde::Serialize;
-use serde_json::json;
 
 use crate::client_cmd::{Api, Simulated, checked};
 use crate::collect_cmd::{move_wait, sample, wait_still};
@@ -102,8 +102,7 @@ fn config_text(dir: &Path, seed: u64) -> String {
 /// Hangs `n` newtons on the simulated arm and tells the daemon.
 fn set_load(api: &mut Simulated, n: f64) -> Result<()> {
     api.0.servo.set_load(n);
-    checked(api, json!({"cmd": "set_payload", "newtons": n}))?;
-    Ok(())
+    crate::collect_cmd::set_payload(api, n)
 }
 
 /// `pa10 demo`.
@@ -188,7 +187,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("pose {id}: {e}"))?;
         reference = q;
         bar.set_message(format!("calibration pose {id}"));
-        move_wait(&mut api, json!({"cmd": "move_joints", "q": q}))
+        move_wait(&mut api, ApiRequest::MoveJoints { q })
             .with_context(|| format!("calibration pose {id}"))?;
         // Loads up at one pose, down at the next: one load change fewer per pose.
         let loads: Vec<f64> = if n % 2 == 0 {
@@ -283,20 +282,20 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
     for (k, target) in targets.iter().enumerate() {
         // At each pose every model in turn (a short move between them).
         for (mi, (name, m)) in named.iter().enumerate() {
-            checked(&mut api, json!({"cmd": "load_model", "path": paths[mi]}))?;
+            let path = paths[mi].display().to_string();
+            checked(&mut api, ApiRequest::LoadModel { path })?;
             let (p, q) = pose_parts(&(m.base_from_instrument() * target));
             bar.set_message(format!("validation pose {} with the {name}", k + 1));
             move_wait(
                 &mut api,
-                json!({"cmd": "move_pose", "position": p, "quaternion": q}),
+                ApiRequest::MovePose {
+                    position: p,
+                    quaternion: q,
+                },
             )
             .with_context(|| format!("validation pose {} with the {name}", k + 1))?;
             if mi == named.len() - 1 {
-                let st = checked(&mut api, json!({"cmd": "status"}))?;
-                val_q.push(
-                    crate::collect_cmd::arr6(&st["status"]["setpoint"])
-                        .context("status setpoint")?,
-                );
+                val_q.push(crate::client_cmd::status_of(&mut api)?.setpoint);
             }
             // Loads up for one model, down for the next.
             let order: Vec<usize> = if mi % 2 == 0 {

@@ -17,6 +17,7 @@ mod sim_cmd;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use pa10::daemon::wire::ApiRequest;
 
 /// pa10: calibrated, compliance-compensating positioning for the Mitsubishi PA10-6CE.
 #[derive(Debug, Parser)]
@@ -137,35 +138,37 @@ fn main() -> ExitCode {
         Command::Sim(c) => sim_cmd::sim(&c),
         Command::Status(c) => client_cmd::status(&c),
         Command::Move { conn, cmd } => client_cmd::move_cmd(&conn, &cmd),
-        Command::Stop(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "stop"})),
-        Command::Estop(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "estop"})),
-        Command::Reset(c) => client_cmd::simple(&c, serde_json::json!({"cmd": "reset"})),
+        Command::Stop(c) => client_cmd::simple(&c, ApiRequest::Stop {}),
+        Command::Estop(c) => client_cmd::simple(&c, ApiRequest::Estop {}),
+        Command::Reset(c) => client_cmd::simple(&c, ApiRequest::Reset {}),
         Command::Payload {
             conn,
             newtons,
             mass,
             com,
         } => {
-            let mut req = serde_json::json!({"cmd": "set_payload"});
-            match (newtons, mass) {
-                (Some(n), _) => req["newtons"] = n.into(),
-                (None, Some(m)) => req["mass_kg"] = m.into(),
-                (None, None) => {}
-            }
-            if let Some(c) = com {
-                req["com"] = c.into();
-            }
+            let req = ApiRequest::SetPayload {
+                newtons,
+                // --newtons wins when both are given
+                mass_kg: mass.filter(|_| newtons.is_none()),
+                com: com.map(|c| [c[0], c[1], c[2]]),
+            };
             client_cmd::simple(&conn, req)
         }
         Command::Tool { conn, pose } => client_cmd::simple(
             &conn,
-            serde_json::json!({"cmd": "set_tool", "translation": &pose[..3], "quaternion": &pose[3..]}),
+            ApiRequest::SetTool {
+                translation: [pose[0], pose[1], pose[2]],
+                quaternion: [pose[3], pose[4], pose[5], pose[6]],
+            },
         ),
         Command::LoadModel { conn, file } => {
             let path = std::fs::canonicalize(&file).unwrap_or(file);
             client_cmd::simple(
                 &conn,
-                serde_json::json!({"cmd": "load_model", "path": path}),
+                ApiRequest::LoadModel {
+                    path: path.display().to_string(),
+                },
             )
         }
         Command::Watch { conn, rate_hz } => client_cmd::watch(&conn, rate_hz),
@@ -173,10 +176,9 @@ fn main() -> ExitCode {
         Command::Record(c) => record_cmd::run(&c),
         Command::Servo(c) => motion_cmd::servo(&c),
         Command::Jog(a) => motion_cmd::jog(&a),
-        Command::Speed { conn, fraction } => client_cmd::simple(
-            &conn,
-            serde_json::json!({"cmd": "set_speed_scaling", "fraction": fraction}),
-        ),
+        Command::Speed { conn, fraction } => {
+            client_cmd::simple(&conn, ApiRequest::SetSpeedScaling { fraction })
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

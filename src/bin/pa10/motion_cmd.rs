@@ -2,16 +2,17 @@
 //! waypoints from a CSV or JSON file), `pa10 servo` (setpoints streamed from stdin),
 //! `pa10 jog J SPEED`, `pa10 speed F` (docs/motion.md).
 
-use std::io::{BufRead, BufReader, Write};
-use std::os::unix::net::UnixStream;
+use std::io::BufRead;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use serde_json::{Value, json};
+use pa10::daemon::control::TrajectoryState;
+use pa10::daemon::trajectory::TrajectoryPoint;
+use pa10::daemon::wire::{Answer, ApiRequest};
 
-use crate::client_cmd::{Conn, checked};
+use crate::client_cmd::{Conn, checked, status_of};
 
 /// The largest trajectory file read, bytes.
 const MAX_FILE_BYTES: u64 = 1 << 20;
@@ -39,8 +40,16 @@ pub struct TrajectoryArgs {
     wait: bool,
 }
 
+/// A JSON trajectory file: the points, or an object holding them.
+#[derive(serde::Deserialize)]
+#[serde(untagged)]
+enum PointsFile {
+    Points(Vec<TrajectoryPoint>),
+    Object { points: Vec<TrajectoryPoint> },
+}
+
 /// Waypoints from `path` (CSV or JSON, see [`TrajectoryArgs`]).
-pub fn read_points(path: &Path) -> Result<Value> {
+pub fn read_points(path: &Path) -> Result<Vec<TrajectoryPoint>> {
     let len = std::fs::metadata(path)
         .with_context(|| format!("{}", path.display()))?
         .len();
@@ -52,12 +61,14 @@ pub fn read_points(path: &Path) -> Result<Value> {
     }
     let text = std::fs::read_to_string(path).with_context(|| format!("{}", path.display()))?;
     if text.trim_start().starts_with(['[', '{']) {
-        let v: Value =
-            serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-        return Ok(if v.is_object() {
-            v["points"].clone()
-        } else {
-            v
+        let file: PointsFile = serde_json::from_str(&text).with_context(|| {
+            format!(
+                "{}: not a JSON list of points (positions, time_from_start; velocities, accelerations optional)",
+                path.display()
+            )
+        })?;
+        return Ok(match file {
+            PointsFile::Points(p) | PointsFile::Object { points: p } => p,
         });
     }
     let mut points = Vec::new();
@@ -93,83 +104,57 @@ pub fn read_points(path: &Path) -> Result<Value> {
                 cols.len()
             );
         }
-        let mut p = json!({"time_from_start": x[0], "positions": &x[1..7]});
-        if with_v {
-            p["velocities"] = json!(&x[7..13]);
-        }
-        points.push(p);
+        let six = |k: usize| std::array::from_fn(|j| x[k + j]);
+        points.push(TrajectoryPoint {
+            positions: six(1),
+            velocities: with_v.then(|| six(7)),
+            accelerations: None,
+            time_from_start: x[0],
+        });
     }
-    Ok(Value::Array(points))
+    Ok(points)
 }
 
 /// `pa10 trajectory`.
 pub fn trajectory(a: &TrajectoryArgs) -> Result<()> {
     let points = read_points(&a.file)?;
     let api = &mut crate::client_cmd::Socket(a.conn.clone());
-    let v = checked(
+    let answer = checked(
         api,
-        json!({
-            "cmd": "follow_trajectory",
-            "points": points,
-            "path_tolerance": vec![a.path_tolerance; 6],
-            "goal_tolerance": vec![a.goal_tolerance; 6],
-            "goal_time_tolerance": a.goal_time,
-        }),
+        ApiRequest::FollowTrajectory {
+            points,
+            path_tolerance: Some([a.path_tolerance; 6]),
+            goal_tolerance: Some([a.goal_tolerance; 6]),
+            goal_time_tolerance: Some(a.goal_time),
+        },
     )?;
-    let id = v["id"].clone();
+    let Answer::Following { id } = answer else {
+        bail!("pa10d answered follow_trajectory with {answer:?}");
+    };
     if !a.wait {
         println!("following trajectory {id}");
         return Ok(());
     }
     loop {
-        let st = checked(api, json!({"cmd": "status"}))?;
-        let t = &st["status"]["trajectory"];
-        if t["id"] != id {
-            bail!("trajectory {id} was replaced by {}", t["id"]);
+        let st = status_of(api)?;
+        let t = st.trajectory;
+        if t.id != id {
+            bail!("trajectory {id} was replaced by {}", t.id);
         }
-        match t["state"].as_str() {
-            Some("executing") => std::thread::sleep(Duration::from_millis(20)),
-            Some("succeeded") => {
-                println!("trajectory {id} succeeded; error [rad] {}", t["error"]);
+        match t.state {
+            TrajectoryState::Executing => std::thread::sleep(Duration::from_millis(20)),
+            TrajectoryState::Succeeded => {
+                println!("trajectory {id} succeeded; error [rad] {:?}", t.error);
                 return Ok(());
             }
-            _ => bail!(
-                "trajectory {id} {}: {} (error [rad] {}; fault {})",
-                t["state"],
-                t["result"],
-                t["error"],
-                st["status"]["fault"]
+            state => bail!(
+                "trajectory {id} {}: {} (error [rad] {:?}; fault {})",
+                serde_json::to_string(&state)?,
+                serde_json::to_string(&t.result)?,
+                t.error,
+                st.fault.as_deref().unwrap_or("none")
             ),
         }
-    }
-}
-
-/// One connection kept open (streams, the lease).
-struct Session {
-    w: UnixStream,
-    r: BufReader<UnixStream>,
-}
-
-impl Session {
-    fn open(c: &Conn) -> Result<Self> {
-        let w = UnixStream::connect(c.socket())
-            .with_context(|| format!("connecting to pa10d at {}", c.socket().display()))?;
-        w.set_read_timeout(Some(Duration::from_secs(10)))?;
-        let r = BufReader::new(w.try_clone()?);
-        Ok(Self { w, r })
-    }
-    fn call(&mut self, req: &Value) -> Result<Value> {
-        self.w.write_all(format!("{req}\n").as_bytes())?;
-        let mut line = String::new();
-        self.r.read_line(&mut line)?;
-        let v: Value = serde_json::from_str(&line).context("the daemon's answer is not JSON")?;
-        if v["ok"] != true {
-            bail!(
-                "pa10d refused: {}",
-                v["error"].as_str().unwrap_or("unknown error")
-            );
-        }
-        Ok(v)
     }
 }
 
@@ -177,7 +162,7 @@ impl Session {
 /// commas, sent as they come on one connection; the daemon stops the arm when they stop
 /// coming (`servo.deadline_ms`).
 pub fn servo(c: &Conn) -> Result<()> {
-    let mut s = Session::open(c)?;
+    let mut s = c.client().connect()?;
     let mut n = 0usize;
     for (k, line) in std::io::stdin().lock().lines().enumerate() {
         let line = line?;
@@ -190,14 +175,18 @@ pub fn servo(c: &Conn) -> Result<()> {
             .map(str::parse)
             .collect::<Result<_, _>>()
             .with_context(|| format!("stdin line {}: not numbers", k + 1))?;
-        if q.len() != 6 {
+        let Ok(q) = <[f64; 6]>::try_from(q.as_slice()) else {
             bail!(
                 "stdin line {}: {} values, 6 link angles (rad) needed",
                 k + 1,
                 q.len()
             );
-        }
-        s.call(&json!({"cmd": "servo", "positions": q}))?;
+        };
+        s.call(&ApiRequest::Servo {
+            positions: Some(q),
+            position: None,
+            quaternion: None,
+        })?;
         n += 1;
     }
     println!("{n} setpoints sent");
@@ -229,13 +218,17 @@ pub fn jog(a: &JogArgs) -> Result<()> {
     }
     let mut v = [0.0; 6];
     v[a.joint - 1] = a.speed;
-    let mut s = Session::open(&a.conn)?;
+    let mut s = a.conn.client().connect()?;
     let end = Instant::now() + Duration::from_secs_f64(a.seconds);
     while Instant::now() < end {
-        s.call(&json!({"cmd": "jog", "joint_velocities": v}))?;
+        s.call(&ApiRequest::Jog {
+            joint_velocities: Some(v),
+            tool_twist: None,
+            frame: None,
+        })?;
         std::thread::sleep(Duration::from_millis(20));
     }
-    s.call(&json!({"cmd": "stop"}))?;
+    s.call(&ApiRequest::Stop {})?;
     crate::client_cmd::wait_settled(
         &mut crate::client_cmd::Socket(a.conn.clone()),
         Duration::from_secs(10),

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Subcommand;
-use serde_json::json;
+use pa10::daemon::wire::{Answer, ApiRequest};
 
 use crate::client_cmd::{Conn, checked};
 use pa10::record::read;
@@ -52,21 +52,20 @@ pub fn run(c: &RecordCmd) -> Result<()> {
             out,
             duration,
         } => {
-            let mut req = json!({"cmd": "record_start"});
-            if let Some(o) = out {
-                req["file"] = o.clone().into();
+            let req = ApiRequest::RecordStart {
+                file: out.clone(),
+                duration_s: *duration,
+            };
+            match checked(&mut crate::client_cmd::Socket(conn.clone()), req)? {
+                Answer::Recording { path } => println!("recording to {path}"),
+                other => anyhow::bail!("pa10d answered record_start with {other:?}"),
             }
-            if let Some(d) = duration {
-                req["duration_s"] = (*d).into();
-            }
-            let v = checked(&mut crate::client_cmd::Socket(conn.clone()), req)?;
-            println!("recording to {}", v["path"].as_str().unwrap_or("?"));
             Ok(())
         }
         RecordCmd::Stop(conn) => {
             checked(
                 &mut crate::client_cmd::Socket(conn.clone()),
-                json!({"cmd": "record_stop"}),
+                ApiRequest::RecordStop {},
             )?;
             println!("stopped");
             Ok(())

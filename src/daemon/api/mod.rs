@@ -1,170 +1,52 @@
 //! The client API: newline-delimited JSON over a Unix socket (`docs/api.md`).
 //!
-//! [`handle`] is the request handler (JSON in, JSON out, against the daemon's [`Core`](super::core::Core));
-//! [`serve`] is the thin tokio shell that accepts connections and moves lines. Every request
-//! is validated and a refused one leaves the robot as it was.
+//! [`handle`] is the request handler (an [`ApiRequest`] in, a [`Reply`] out, against the
+//! daemon's [`Core`](super::core::Core)); [`parse`] turns a line into a request or the refusal
+//! that answers it; [`serve`] is the thin tokio shell that accepts connections and moves
+//! lines; [`Client`] is the blocking client the `pa10` CLI and the ROS 2 bridge call the daemon
+//! with. The types are [`super::wire`]'s. Every request is validated and a refused one leaves
+//! the robot as it was.
 
 use std::path::Path;
 use std::sync::Arc;
 
-use serde::Deserialize;
-use serde_json::{Value, json};
-
 use super::control::CommandError;
 use super::control::{Stream, Tolerances};
 use super::core::{ClientId, Command, LOCAL, PlanBasis};
-use super::motion::{CartesianPoint, Move, MoveError, cartesian_waypoints};
+use super::motion::{Move, MoveError, cartesian_waypoints};
 use super::runtime::{SharedCore, lock};
 use super::trajectory::TrajectoryPoint;
+use super::wire::{Answer, ApiRequest, Reply};
 use crate::model::{Model, frame_from_pose};
+
+pub use client::{CALL_TIMEOUT_S, Client, ClientError};
 
 pub use serve::{
     ApiHealth, IDLE_TIMEOUT_S, LOG_PER_WINDOW, LOG_WINDOW_S, LogLimiter, LogVerdict,
     MAX_LINE_BYTES, REQUEST_TIMEOUT_S, SocketLock, serve,
 };
 
+mod client;
 mod serve;
-
-/// A client request.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(tag = "cmd", rename_all = "snake_case", deny_unknown_fields)]
-pub enum Request {
-    /// The daemon's state.
-    Status {},
-    /// A joint move to `q` (link angles, rad).
-    MoveJoints {
-        /// Target, rad.
-        q: [f64; 6],
-    },
-    /// A straight-line tool move to a pose (base frame, m, quaternion w, x, y, z).
-    MovePose {
-        /// Position, m.
-        position: [f64; 3],
-        /// Unit quaternion w, x, y, z.
-        quaternion: [f64; 4],
-    },
-    /// Controlled stop.
-    Stop {},
-    /// Immediate servo stop and brakes.
-    Estop {},
-    /// Clears a fault.
-    Reset {},
-    /// Sets the payload: its weight (`newtons`, or `mass_kg` under the model's gravity) and
-    /// its centre of mass in the tool frame (`com`, m; default the tool origin).
-    SetPayload {
-        /// Weight, N.
-        #[serde(default)]
-        newtons: Option<f64>,
-        /// Mass, kg.
-        #[serde(default)]
-        mass_kg: Option<f64>,
-        /// Centre of mass in the tool frame, m.
-        #[serde(default)]
-        com: Option<[f64; 3]>,
-    },
-    /// Sets the tool transform (flange → tool): translation, m, and a unit quaternion
-    /// w, x, y, z. Compensation and Cartesian commands use it at once.
-    SetTool {
-        /// Translation, m.
-        translation: [f64; 3],
-        /// Unit quaternion w, x, y, z.
-        quaternion: [f64; 4],
-    },
-    /// Hot-reloads a model file between moves.
-    LoadModel {
-        /// Path of the model YAML.
-        path: String,
-    },
-    /// Streams `status` at `rate_hz` until the client disconnects.
-    Subscribe {
-        /// Hz (0.1…100).
-        rate_hz: f64,
-    },
-    /// Follows a timed joint trajectory (link side), replacing what runs.
-    FollowTrajectory {
-        /// Waypoints.
-        points: Vec<TrajectoryPoint>,
-        /// Per-joint path tolerance, rad (0: unchecked; default unchecked).
-        #[serde(default)]
-        path_tolerance: Option<[f64; 6]>,
-        /// Per-joint goal tolerance, rad (0: unchecked; default 0.005).
-        #[serde(default)]
-        goal_tolerance: Option<[f64; 6]>,
-        /// Time after the end the goal may still be reached, s (default 1).
-        #[serde(default)]
-        goal_time_tolerance: Option<f64>,
-    },
-    /// Follows tool-pose waypoints, straight lines between them (from holding).
-    FollowCartesian {
-        /// Waypoints.
-        points: Vec<CartesianPoint>,
-        /// Per-joint path tolerance, rad (0: unchecked; default unchecked).
-        #[serde(default)]
-        path_tolerance: Option<[f64; 6]>,
-        /// Per-joint goal tolerance, rad (0: unchecked; default 0.005).
-        #[serde(default)]
-        goal_tolerance: Option<[f64; 6]>,
-        /// Time after the end the goal may still be reached, s (default 1).
-        #[serde(default)]
-        goal_time_tolerance: Option<f64>,
-    },
-    /// A streamed setpoint: link positions (rad), or a tool pose.
-    Servo {
-        /// Link positions, rad.
-        #[serde(default)]
-        positions: Option<[f64; 6]>,
-        /// Tool position, m (base frame), with `quaternion`.
-        #[serde(default)]
-        position: Option<[f64; 3]>,
-        /// Tool orientation, unit quaternion w, x, y, z.
-        #[serde(default)]
-        quaternion: Option<[f64; 4]>,
-    },
-    /// Streamed joint velocities, rad/s.
-    Jog {
-        /// Link velocities, rad/s.
-        #[serde(default)]
-        joint_velocities: Option<[f64; 6]>,
-        /// A tool twist: vx, vy, vz (m/s), wx, wy, wz (rad/s).
-        #[serde(default)]
-        tool_twist: Option<[f64; 6]>,
-        /// The twist's frame: `base` (default) or `tool`.
-        #[serde(default)]
-        frame: Option<String>,
-    },
-    /// Slows running and future trajectories and streams, 0 < f ≤ 1.
-    SetSpeedScaling {
-        /// The fraction of full speed.
-        fraction: f64,
-    },
-    /// Starts recording every cycle to an MCAP file inside `record.dir`.
-    RecordStart {
-        /// A plain file name (default `pa10d-<unix time>.mcap`).
-        #[serde(default)]
-        file: Option<String>,
-        /// Stop after this long, s (default: until `record_stop`).
-        #[serde(default)]
-        duration_s: Option<f64>,
-    },
-    /// Stops recording.
-    RecordStop {},
-    /// Takes the motion lease for this connection.
-    Acquire {},
-    /// Gives the motion lease back.
-    Release {},
-}
 
 pub use crate::text::truncate;
 
 /// The longest error text an answer carries, bytes: a hostile request is never echoed whole.
 const MAX_ERROR_BYTES: usize = 300;
 
-fn err(msg: impl std::fmt::Display) -> Value {
-    json!({ "ok": false, "error": truncate(&msg.to_string(), MAX_ERROR_BYTES) })
+/// A refusal with `msg`, cut to [`MAX_ERROR_BYTES`].
+fn err(msg: impl std::fmt::Display) -> Reply {
+    Reply::Refused(truncate(&msg.to_string(), MAX_ERROR_BYTES))
 }
 
-fn answer(r: Result<Value, CommandError>) -> Value {
-    r.unwrap_or_else(err)
+fn answer(r: Result<Answer, CommandError>) -> Reply {
+    r.map_or_else(err, Reply::Ok)
+}
+
+/// One request line as a request, or the refusal that answers it (`bad request: …`, naming
+/// the key and column serde found wrong).
+pub fn parse(line: &str) -> Result<ApiRequest, Reply> {
+    serde_json::from_str(line).map_err(|e| err(format!("bad request: {e}")))
 }
 
 /// The largest model file `load_model` reads, bytes.
@@ -228,7 +110,7 @@ fn plan_and_start(
     core: &SharedCore,
     client: ClientId,
     plan: impl FnOnce(&PlanBasis) -> Result<Move, MoveError>,
-) -> Result<Value, CommandError> {
+) -> Result<Answer, CommandError> {
     let basis = lock(core).plan_basis_for(client)?;
     let mv = plan(&basis)?;
     let d = mv.duration();
@@ -239,38 +121,33 @@ fn plan_and_start(
             basis,
         },
     )?;
-    Ok(json!({ "ok": true, "duration_s": d }))
+    Ok(Answer::Moving { duration_s: d })
 }
 
-/// Handles one request line; `Subscribe` is answered by [`serve`] (here: one status).
+/// Handles one request; `Subscribe` is answered by [`serve`] (here: one status).
 ///
 /// The lock on the core is held only to read a snapshot or to apply a command: planning a
 /// move and parsing a model file happen outside it, so the 2 ms cycle never waits for them.
-pub fn handle(core: &SharedCore, line: &str) -> Value {
-    handle_from(core, line, LOCAL)
+pub fn handle(core: &SharedCore, req: ApiRequest) -> Reply {
+    handle_from(core, req, LOCAL)
+}
+
+/// The status reply: refused while the daemon starts (until its first cycle, unless the
+/// start failed, which status then reports).
+pub fn status_reply(core: &SharedCore) -> Reply {
+    let c = lock(core);
+    if !c.is_ready() && c.startup_failure().is_none() {
+        return err(CommandError::NotReady("starting".into()));
+    }
+    Reply::Ok(Answer::Status(Box::new(c.status())))
 }
 
 /// As [`handle`], for the connection `client` (the motion lease is per connection).
-pub fn handle_from(core: &SharedCore, line: &str, client: ClientId) -> Value {
-    let submit = |cmd| {
-        answer(
-            lock(core)
-                .submit_from(client, cmd)
-                .map(|()| json!({ "ok": true })),
-        )
-    };
-    let req: Request = match serde_json::from_str(line) {
-        Ok(r) => r,
-        Err(e) => return err(format!("bad request: {e}")),
-    };
+pub fn handle_from(core: &SharedCore, req: ApiRequest, client: ClientId) -> Reply {
+    let submit = |cmd| answer(lock(core).submit_from(client, cmd).map(|()| Answer::Done));
+    use ApiRequest as Request;
     match req {
-        Request::Status {} | Request::Subscribe { .. } => {
-            let c = lock(core);
-            if !c.is_ready() && c.startup_failure().is_none() {
-                return err(CommandError::NotReady("starting".into()));
-            }
-            json!({ "ok": true, "status": c.status() })
-        }
+        Request::Status {} | Request::Subscribe { .. } => status_reply(core),
         Request::MoveJoints { q } => answer(plan_and_start(core, client, |b| {
             Move::joints(&b.model, b.from, q, &b.speed, &b.acceleration)
         })),
@@ -426,7 +303,7 @@ pub fn handle_from(core: &SharedCore, line: &str, client: ClientId) -> Value {
                 Ok(tap) => {
                     let path = tap.stats.status(true).path;
                     match lock(core).submit_from(client, Command::Record(Box::new(tap))) {
-                        Ok(()) => json!({ "ok": true, "path": path }),
+                        Ok(()) => Reply::Ok(Answer::Recording { path }),
                         Err(e) => err(e),
                     }
                 }
@@ -444,7 +321,7 @@ fn tolerances(
     path: Option<[f64; 6]>,
     goal: Option<[f64; 6]>,
     goal_time: Option<f64>,
-) -> Result<Tolerances, Value> {
+) -> Result<Tolerances, Reply> {
     let d = Tolerances::default();
     let t = Tolerances {
         path: path.unwrap_or(d.path),
@@ -461,14 +338,14 @@ fn tolerances(
     }
 }
 
-/// Hands a joint trajectory to the core: `{"ok":true,"id":N}` or the refusal.
+/// Hands a joint trajectory to the core: its id, or the refusal.
 fn follow(
     core: &SharedCore,
     client: ClientId,
     points: Vec<TrajectoryPoint>,
     tolerances: Tolerances,
     basis: Option<PlanBasis>,
-) -> Value {
+) -> Reply {
     let mut c = lock(core);
     let cmd = Command::FollowTrajectory {
         points,
@@ -476,14 +353,16 @@ fn follow(
         basis,
     };
     match c.submit_from(client, cmd) {
-        Ok(()) => json!({ "ok": true, "id": c.controller().map_or(0, |c| c.trajectory().id) }),
+        Ok(()) => Reply::Ok(Answer::Following {
+            id: c.controller().map_or(0, |c| c.trajectory().id),
+        }),
         Err(e) => err(e),
     }
 }
 
 /// A tool pose from a request: finite position (m) and a unit quaternion (w, x, y, z), or
 /// the refusal to answer with.
-fn pose_target(position: [f64; 3], quaternion: [f64; 4]) -> Result<crate::model::Frame, Value> {
+fn pose_target(position: [f64; 3], quaternion: [f64; 4]) -> Result<crate::model::Frame, Reply> {
     let n = quaternion.iter().map(|v| v * v).sum::<f64>().sqrt();
     if !position.iter().chain(&quaternion).all(|v| v.is_finite()) || (n - 1.0).abs() > 1e-3 {
         return Err(err(format!(

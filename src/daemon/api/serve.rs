@@ -1,6 +1,7 @@
 //! The API's tokio shell: the Unix socket (one daemon per socket path), connections with
 //! their size and time limits, line framing, and rate-limited logging of refusals. Each line
-//! goes to [`super::handle_from`]; nothing here knows a request's meaning.
+//! is parsed by [`super::parse`] and goes to [`super::handle_from`]; nothing here knows a
+//! request's meaning but `subscribe`'s (a stream, not one reply).
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::time::Duration;
@@ -62,7 +63,7 @@ pub async fn serve(
             let e = err(format!(
                 "too many clients ({max_clients} connected, api.max_clients); try again later"
             ));
-            let _ = conn.try_write(format!("{e}\n").as_bytes());
+            let _ = conn.try_write(&reply_line(&e));
             continue;
         }
         health.clients.fetch_add(1, Ordering::Relaxed);
@@ -205,7 +206,7 @@ async fn connection(conn: tokio::net::UnixStream, core: Arc<SharedCore>, id: Cli
                 let e = err(format!(
                     "no complete request for {IDLE_TIMEOUT_S} s; closing"
                 ));
-                let _ = w.write_all(format!("{e}\n").as_bytes()).await;
+                let _ = write_reply(&mut w, &e).await;
                 return;
             }
             Ok(Err(_)) | Ok(Ok(LineRead::Eof)) => return,
@@ -215,67 +216,59 @@ async fn connection(conn: tokio::net::UnixStream, core: Arc<SharedCore>, id: Cli
             let e = err(format!(
                 "request longer than {MAX_LINE_BYTES} bytes without a newline; closing"
             ));
-            let _ = w.write_all(format!("{e}\n").as_bytes()).await;
+            let _ = write_reply(&mut w, &e).await;
             return;
         }
         let Ok(line) = std::str::from_utf8(&buf) else {
-            let e = err("bad request: not UTF-8 text");
-            if w.write_all(format!("{e}\n").as_bytes()).await.is_err() {
+            if !write_reply(&mut w, &err("bad request: not UTF-8 text")).await {
                 return;
             }
             continue;
         };
-        if let Ok(Request::Subscribe { rate_hz }) = serde_json::from_str::<Request>(line) {
-            if !(0.1..=100.0).contains(&rate_hz) {
-                let e = err("rate_hz must be within 0.1…100 Hz");
-                if w.write_all(format!("{e}\n").as_bytes()).await.is_err() {
-                    return;
-                }
-                continue;
-            }
-            let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
-            loop {
-                tick.tick().await;
-                let st = json!({ "ok": true, "status": lock(&core).status() });
-                if w.write_all(format!("{st}\n").as_bytes()).await.is_err() {
-                    return;
-                }
-            }
-        }
-        let cmd = serde_json::from_str::<Value>(line)
-            .ok()
-            .and_then(|v| v["cmd"].as_str().map(|c| truncate(c, 32)))
-            .unwrap_or_default();
-        let span = tracing::info_span!("request", cmd = %cmd);
-        // Off the runtime's thread: planning takes about a millisecond, reading a model file
-        // is blocking IO.
-        let (c, l) = (core.clone(), line.to_string());
-        let work = tokio::task::spawn_blocking(move || handle_from(&c, &l, id));
-        let resp = match tokio::time::timeout(Duration::from_secs(REQUEST_TIMEOUT_S), work).await {
-            Ok(Ok(r)) => r,
-            Ok(Err(_)) => err("internal error while handling the request"),
-            Err(_) => err(format!("no answer within {REQUEST_TIMEOUT_S} s")),
-        };
-        span.in_scope(|| {
-            if resp["ok"] == true {
-                // status is polled (often at 100 Hz): keep it out of the journal
-                if cmd == "status" {
-                    tracing::debug!("done");
-                } else {
-                    tracing::info!("done");
-                }
-            } else {
-                let kind = if cmd.is_empty() {
-                    "malformed"
-                } else {
-                    cmd.as_str()
-                };
-                match limiter.check(kind, started.elapsed().as_secs_f64()) {
-                    LogVerdict::Log { suppressed: 0 } => {
-                        tracing::warn!(error = %resp["error"], "refused")
+        let (cmd, resp) = match parse(line) {
+            Ok(ApiRequest::Subscribe { rate_hz }) => {
+                if !(0.1..=100.0).contains(&rate_hz) {
+                    if !write_reply(&mut w, &err("rate_hz must be within 0.1…100 Hz")).await {
+                        return;
                     }
+                    continue;
+                }
+                let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate_hz));
+                loop {
+                    tick.tick().await;
+                    if !write_reply(&mut w, &status_reply(&core)).await {
+                        return;
+                    }
+                }
+            }
+            Ok(req) => {
+                let cmd = req.name();
+                // Off the runtime's thread: planning takes about a millisecond, reading a
+                // model file is blocking IO.
+                let c = core.clone();
+                let work = tokio::task::spawn_blocking(move || handle_from(&c, req, id));
+                let resp = match tokio::time::timeout(Duration::from_secs(REQUEST_TIMEOUT_S), work)
+                    .await
+                {
+                    Ok(Ok(r)) => r,
+                    Ok(Err(_)) => err("internal error while handling the request"),
+                    Err(_) => err(format!("no answer within {REQUEST_TIMEOUT_S} s")),
+                };
+                (cmd, resp)
+            }
+            Err(refusal) => (ApiRequest::name_in(line), refusal),
+        };
+        let span = tracing::info_span!("request", cmd = %cmd);
+        span.in_scope(|| match &resp {
+            // status is polled (often at 100 Hz): keep it out of the journal
+            Reply::Ok(_) if cmd == "status" => tracing::debug!("done"),
+            Reply::Ok(_) => tracing::info!("done"),
+            Reply::Refused(error) => {
+                let kind = if cmd.is_empty() { "malformed" } else { cmd };
+                match limiter.check(kind, started.elapsed().as_secs_f64()) {
+                    LogVerdict::Log { suppressed: 0 } => tracing::warn!(%error, "refused"),
                     LogVerdict::Log { suppressed } => tracing::warn!(
-                        error = %resp["error"],
+                        %error,
                         suppressed,
                         "refused (and {suppressed} more like it on this connection, not logged)"
                     ),
@@ -283,10 +276,23 @@ async fn connection(conn: tokio::net::UnixStream, core: Arc<SharedCore>, id: Cli
                 }
             }
         });
-        if w.write_all(format!("{resp}\n").as_bytes()).await.is_err() {
+        if !write_reply(&mut w, &resp).await {
             return;
         }
     }
+}
+
+/// One reply as a line of JSON text.
+fn reply_line(reply: &Reply) -> Vec<u8> {
+    // a reply is plain data with string keys: it always serialises
+    let mut line = serde_json::to_vec(reply).unwrap_or_default();
+    line.push(b'\n');
+    line
+}
+
+/// Writes one reply line; false when the client has gone.
+async fn write_reply(w: &mut tokio::net::unix::OwnedWriteHalf, reply: &Reply) -> bool {
+    w.write_all(&reply_line(reply)).await.is_ok()
 }
 
 /// Refusals logged per connection, per kind of request and per [`LOG_WINDOW_S`].

@@ -173,11 +173,11 @@ impl Controller {
         }
         let scaling = self.scaling.max(self.scaling_target);
         let traj = Trajectory::plan(&self.setpoint, points, &self.joint_limits(), scaling)?;
-        self.end_trajectory(TrajectoryState::Preempted, "preempted");
+        self.end_trajectory(TrajectoryState::Preempted, TrajectoryResult::Preempted);
         self.trajectory = TrajectoryStatus {
             id: self.trajectory.id + 1,
             state: TrajectoryState::Executing,
-            result: "",
+            result: TrajectoryResult::Running,
             desired: self.setpoint.q,
             actual: self.trajectory.actual,
             error: [0.0; 6],
@@ -293,7 +293,7 @@ impl Controller {
     /// A controlled stop: the setpoint decelerates to rest within the acceleration limits,
     /// every joint reaching zero speed at the same instant. No effect unless moving.
     pub fn stop(&mut self) {
-        self.end_trajectory(TrajectoryState::Aborted, "stopped");
+        self.end_trajectory(TrajectoryState::Aborted, TrajectoryResult::Stopped);
         if matches!(
             self.activity,
             Activity::Moving { .. } | Activity::Following { .. } | Activity::Streaming { .. }
@@ -381,17 +381,17 @@ impl Controller {
             None if off_path => {
                 self.stop();
                 self.trajectory.state = TrajectoryState::Aborted;
-                self.trajectory.result = "path_tolerance_violated";
+                self.trajectory.result = TrajectoryResult::PathToleranceViolated;
             }
             None => {}
             Some(_) if !off_goal => {
                 t.state = TrajectoryState::Succeeded;
-                t.result = "succeeded";
+                t.result = TrajectoryResult::Succeeded;
                 self.activity = Activity::Holding;
             }
             Some(true) => {
                 t.state = TrajectoryState::Aborted;
-                t.result = "goal_tolerance_violated";
+                t.result = TrajectoryResult::GoalToleranceViolated;
                 self.activity = Activity::Holding;
             }
             Some(false) => {}
@@ -402,13 +402,13 @@ impl Controller {
     /// stop): zero speed until [`Controller::reset`]. An earlier fault is kept.
     pub fn halt(&mut self, f: Fault) {
         if !matches!(self.activity, Activity::Faulted(_)) {
-            self.end_trajectory(TrajectoryState::Aborted, "fault");
+            self.end_trajectory(TrajectoryState::Aborted, TrajectoryResult::Fault);
             self.activity = Activity::Faulted(f);
         }
     }
 
     fn fault(&mut self, f: Fault) -> [f64; 6] {
-        self.end_trajectory(TrajectoryState::Aborted, "fault");
+        self.end_trajectory(TrajectoryState::Aborted, TrajectoryResult::Fault);
         self.activity = Activity::Faulted(f);
         [0.0; 6]
     }

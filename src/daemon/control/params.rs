@@ -2,6 +2,8 @@
 //! ([`CommandError`]), what it is doing ([`Activity`], [`TrajectoryStatus`]), what a client
 //! streams ([`Stream`]) and the parameters it runs with ([`LoopParams`], [`Tolerances`]).
 
+use schemars::JsonSchema;
+
 use crate::daemon::link::LinkError;
 use crate::daemon::motion::{Move, MoveError};
 use crate::daemon::trajectory::{Trajectory, TrajectoryError};
@@ -208,7 +210,9 @@ impl Default for Tolerances {
 }
 
 /// A trajectory's state, for `status`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize, JsonSchema,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum TrajectoryState {
     /// None started yet.
@@ -224,17 +228,42 @@ pub enum TrajectoryState {
     Preempted,
 }
 
+/// Why a trajectory ended, for `status` (`""` while it has not).
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize, JsonSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum TrajectoryResult {
+    /// Not ended (executing, or none started): `""` on the wire.
+    #[default]
+    #[serde(rename = "")]
+    Running,
+    /// Reached its goal within the tolerances.
+    Succeeded,
+    /// A joint left its path tolerance; the arm stopped.
+    PathToleranceViolated,
+    /// The goal was not reached within the goal time tolerance.
+    GoalToleranceViolated,
+    /// Replaced by a newer trajectory, a move or a stream.
+    Preempted,
+    /// Ended by a stop request.
+    Stopped,
+    /// Ended by a fault.
+    Fault,
+}
+
 /// The latest trajectory, for `status`: `desired` is the setpoint, `actual` the link estimate
 /// (resolver angle minus the modelled deflection), `error` = desired − actual (rad).
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize, JsonSchema,
+)]
 pub struct TrajectoryStatus {
     /// Its id (from 1; 0 before the first).
     pub id: u64,
     /// Its state.
     pub state: TrajectoryState,
-    /// Why it ended: `""` while executing, `succeeded`, `path_tolerance_violated`,
-    /// `goal_tolerance_violated`, `preempted`, `stopped`, `fault`.
-    pub result: &'static str,
+    /// Why it ended.
+    pub result: TrajectoryResult,
     /// Desired link positions, rad.
     pub desired: [f64; 6],
     /// Estimated link positions, rad.

@@ -132,7 +132,7 @@ impl Controller {
     }
 
     /// Marks the running trajectory as ended (no effect on any other activity).
-    pub(super) fn end_trajectory(&mut self, state: TrajectoryState, result: &'static str) {
+    pub(super) fn end_trajectory(&mut self, state: TrajectoryState, result: TrajectoryResult) {
         if self.trajectory.state == TrajectoryState::Executing {
             self.trajectory.state = state;
             self.trajectory.result = result;

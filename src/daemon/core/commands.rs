@@ -1,17 +1,13 @@
 //! What clients hand the core and read back: the typed [`Command`]s (with the [`PlanBasis`]
-//! a move was planned from), who sent them ([`ClientId`]) and the [`Status`] snapshot.
+//! a move was planned from), who sent them ([`ClientId`]) (the [`Status`](crate::daemon::wire::Status) snapshot is the wire's).
 
 use std::sync::Arc;
 
-use serde::Serialize;
-
-use crate::daemon::control::{Stream, Tolerances, TrajectoryStatus};
-use crate::daemon::link::LinkCounters;
+use crate::daemon::control::{Stream, Tolerances};
 use crate::daemon::motion::Move;
-use crate::daemon::stats::CycleStats;
 use crate::daemon::trajectory::TrajectoryPoint;
 use crate::model::Model;
-use crate::record::{RecordTap, RecordingStatus};
+use crate::record::RecordTap;
 
 /// What a move was planned from: the model, the link setpoint and the limits, taken under the
 /// lock, used outside it. A [`Command::Start`] is refused when the setpoint or the model has
@@ -113,46 +109,3 @@ pub type ClientId = u64;
 
 /// The in-process caller (the daemon itself, tests, examples).
 pub const LOCAL: ClientId = 0;
-
-/// What `status` reports.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Status {
-    /// starting, holding, moving, stopping, fault, closed.
-    pub state: String,
-    /// The fault, when there is one.
-    pub fault: Option<String>,
-    /// The servo controller's last reported state.
-    pub servo: Option<String>,
-    /// Link-side setpoint, rad.
-    pub setpoint: [f64; 6],
-    /// Resolver angles, rad.
-    pub q_motor: [f64; 6],
-    /// Motor currents, A (the last cycle's).
-    pub current: [f64; 6],
-    /// The daemon's clock, s since it started (the last cycle or event it saw).
-    pub time_s: f64,
-    /// Joint torque estimate the compensation used last cycle, N·m.
-    pub tau: [f64; 6],
-    /// Tool position of the setpoint, m (base frame).
-    pub tool_position: [f64; 3],
-    /// Tool orientation of the setpoint, quaternion w, x, y, z.
-    pub tool_quaternion: [f64; 4],
-    /// Payload, N.
-    pub payload_n: f64,
-    /// The payload's centre of mass in the tool frame, m.
-    pub payload_com: [f64; 3],
-    /// Link counters.
-    pub link: LinkCounters,
-    /// Cycle statistics.
-    pub cycle: CycleStats,
-    /// The latest trajectory.
-    pub trajectory: TrajectoryStatus,
-    /// Speed scaling in force, 0 < f ≤ 1 (it ramps toward what was asked).
-    pub speed_scaling: f64,
-    /// Why the last servo or jog stream ended (a missed deadline), if it did.
-    pub stream_end: Option<&'static str>,
-    /// Whether a client holds the motion lease.
-    pub leased: bool,
-    /// The recording in progress, or the last one.
-    pub recording: Option<RecordingStatus>,
-}

@@ -17,7 +17,8 @@
 
 use std::sync::Arc;
 
-pub use commands::{ClientId, Command, LOCAL, PlanBasis, Status};
+pub use crate::daemon::wire::Status;
+pub use commands::{ClientId, Command, LOCAL, PlanBasis};
 
 mod commands;
 mod status;

@@ -2,6 +2,7 @@
 //! the [`Status`] snapshot clients read.
 
 use super::*;
+use crate::daemon::wire::State;
 use crate::record::Mode;
 
 impl Core {
@@ -75,9 +76,9 @@ impl Core {
         let (state, setpoint, tool, payload) = match &self.ctl {
             None => (
                 if self.failure.is_some() {
-                    "fault"
+                    State::Fault
                 } else {
-                    "starting"
+                    State::Starting
                 },
                 [0.0; 6],
                 None,
@@ -85,10 +86,10 @@ impl Core {
             ),
             Some(c) => {
                 let s = match c.mode() {
-                    _ if self.link.is_closed() => "closed",
-                    Mode::Faulted => Mode::Faulted.name(),
-                    _ if self.restarting => "starting",
-                    m => m.name(),
+                    _ if self.link.is_closed() => State::Closed,
+                    Mode::Faulted => State::Fault,
+                    _ if self.restarting => State::Starting,
+                    m => State::from(m),
                 };
                 (
                     s,
@@ -102,7 +103,7 @@ impl Core {
             .map(|t| crate::model::pose_parts(&t))
             .unwrap_or(([0.0; 3], [1.0, 0.0, 0.0, 0.0]));
         Status {
-            state: state.to_string(),
+            state,
             fault,
             servo: self.link.servo_state().map(|s| format!("{s:?}")),
             setpoint,
@@ -130,7 +131,11 @@ impl Core {
                 .map(|c| *c.trajectory())
                 .unwrap_or_default(),
             speed_scaling: self.ctl.as_ref().map_or(1.0, |c| c.speed_scaling().0),
-            stream_end: self.ctl.as_ref().and_then(|c| c.stream_end()),
+            stream_end: self
+                .ctl
+                .as_ref()
+                .and_then(|c| c.stream_end())
+                .map(str::to_owned),
             leased: self.lease.is_some(),
             recording: self.recorded.as_ref().map(|r| r.status(self.tap.is_some())),
         }

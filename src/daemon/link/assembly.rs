@@ -6,7 +6,17 @@ use crate::can::protocol::{self, Command, Frame, Message, status};
 use crate::daemon::vocab::JointState;
 
 /// Counters of what the link saw, for `status`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    schemars::JsonSchema,
+)]
 pub struct LinkCounters {
     /// Complete cycles assembled.
     pub cycles: u64,
