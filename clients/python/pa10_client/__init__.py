@@ -67,14 +67,24 @@ class Client:
 
     # -- the wire ------------------------------------------------------------------------
 
-    def call(self, request: Json) -> Json:
-        """Sends one request, returns the answer; a refusal raises :class:`Pa10Error`."""
+    def _send(self, request: Json) -> None:
+        """Writes one request line (a subclass may check it first: the tests validate every
+        request against ``docs/api.schema.json``)."""
         self._file.write(json.dumps(request).encode() + b"\n")
         self._file.flush()
+
+    def _receive(self, line: bytes) -> Json:
+        """One reply line as JSON (a subclass may check it: the tests validate every reply)."""
+        answer: Json = json.loads(line)
+        return answer
+
+    def call(self, request: Json) -> Json:
+        """Sends one request, returns the answer; a refusal raises :class:`Pa10Error`."""
+        self._send(request)
         line = self._file.readline()
         if not line:
             raise Pa10Error("pa10d closed the connection", request)
-        answer: Json = json.loads(line)
+        answer = self._receive(line)
         if answer.get("ok") is not True:
             raise Pa10Error(str(answer.get("error", "unknown error")), request)
         return answer
@@ -88,13 +98,12 @@ class Client:
     def subscribe(self, rate_hz: float = 10.0) -> Iterator[Json]:
         """Yields ``status`` at ``rate_hz`` until the connection closes (use a separate
         :class:`Client` for commands)."""
-        self._file.write(json.dumps({"cmd": "subscribe", "rate_hz": rate_hz}).encode() + b"\n")
-        self._file.flush()
+        self._send({"cmd": "subscribe", "rate_hz": rate_hz})
         while True:
             line = self._file.readline()
             if not line:
                 return
-            answer: Json = json.loads(line)
+            answer = self._receive(line)
             if answer.get("ok") is not True:
                 raise Pa10Error(str(answer.get("error")), {"cmd": "subscribe"})
             yield answer["status"]
