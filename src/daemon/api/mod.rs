@@ -19,7 +19,7 @@ use super::trajectory::TrajectoryPoint;
 use super::wire::{Answer, ApiRequest, Reply};
 use crate::model::{Model, frame_from_pose};
 
-pub use client::{CALL_TIMEOUT_S, Client, ClientError};
+pub use client::{CALL_TIMEOUT_S, Client, ClientError, Connection, MAX_REPLY_BYTES, Subscription};
 
 pub use serve::{
     ApiHealth, IDLE_TIMEOUT_S, LOG_PER_WINDOW, LOG_WINDOW_S, LogLimiter, LogVerdict,
