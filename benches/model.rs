@@ -78,7 +78,7 @@ fn bench(c: &mut Criterion) {
     // safety checks — holding, and following a Cartesian move (IK per setpoint).
     use pa10::daemon::config::TorqueSource;
     use pa10::daemon::control::{Controller, JointState, LoopParams};
-    use pa10::daemon::motion::Move;
+    use pa10::daemon::plan::{Limits, Move};
     let params = LoopParams {
         period_s: 0.002,
         gain: 20.0,
@@ -87,8 +87,13 @@ fn bench(c: &mut Criterion) {
         torque_constants: [15.0, 30.0, 15.0, 5.0, 5.0, 2.0],
         payload_n: 44.0,
         payload_com: [0.0; 3],
-        speed: [0.5, 0.5, 1.0, 2.0, 2.0, 2.0],
-        acceleration: [1.0, 1.0, 2.0, 4.0, 4.0, 4.0],
+        // the position limits are the model's (the controller takes them)
+        limits: Limits {
+            lower: [f64::NEG_INFINITY; 6],
+            upper: [f64::INFINITY; 6],
+            speed: [0.5, 0.5, 1.0, 2.0, 2.0, 2.0],
+            acceleration: [1.0, 1.0, 2.0, 4.0, 4.0, 4.0],
+        },
         following_error: 0.05,
         feedback_timeout_s: 1e9,
         stream_deadline_s: 1e9,
@@ -106,16 +111,14 @@ fn bench(c: &mut Criterion) {
     let mut moving = Controller::new(m.clone(), params, &js);
     let mut goal = target;
     goal.translation.vector += nalgebra::Vector3::new(0.05, 0.05, 0.0);
-    let v = [0.5, 0.5, 1.0, 2.0, 2.0, 2.0];
-    let a = [1.0, 1.0, 2.0, 4.0, 4.0, 4.0];
-    let mv = Move::cartesian(&m, moving.setpoint().q, goal, &v, &a).expect("path");
+    let mv = Move::cartesian(&m, moving.setpoint().q, goal, moving.limits()).expect("path");
     moving.start_move(mv, 0.0).expect("start");
     c.bench_function("control cycle (Cartesian move, IK per setpoint)", |b| {
         b.iter(|| moving.step(black_box(0.01), Some(black_box(&js))))
     });
     // trajectories: planning 50 points (under the control lock), sampling one (per cycle)
     use pa10::daemon::control::{Stream, Tolerances};
-    use pa10::daemon::trajectory::{Trajectory, TrajectoryPoint};
+    use pa10::daemon::plan::{Trajectory, TrajectoryPoint};
     let start = *hold.setpoint();
     let points: Vec<TrajectoryPoint> = (1..=50)
         .map(|i| {
@@ -128,7 +131,7 @@ fn bench(c: &mut Criterion) {
             }
         })
         .collect();
-    let lim = hold.joint_limits();
+    let lim = *hold.limits();
     c.bench_function("trajectory plan + check (50 points, clamped spline)", |b| {
         b.iter(|| Trajectory::plan(black_box(&start), black_box(&points), &lim, 1.0).expect("plan"))
     });

@@ -39,7 +39,7 @@ struct Run {
 fn run(secs: f64, fifo: bool, hostile: bool, dir: &Path) -> Run {
     let mut cfg = common::sim_config(500.0, if hostile { "hostile" } else { "quiet" });
     // load_model's confinement is judged in the run's own folder (its secret.yaml included)
-    cfg.model_dir = dir.to_path_buf();
+    cfg.api.model_dir = dir.to_path_buf();
     let path = dir.join(if hostile {
         "hostile.sock"
     } else {

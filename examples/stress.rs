@@ -48,7 +48,7 @@ fn main() {
         let host = common::HostWatch::start(fifo);
         let mut cfg = common::sim_config(500.0, "stress");
         let prio = fifo.then_some(80u8);
-        cfg.config.control.realtime.sched_fifo_priority = prio;
+        cfg.realtime.sched_fifo_priority = prio;
         let (truth, seed) = pa10::sim::rig::truth_for(&cfg).expect("truth");
         let arm = SimulatedArm::start_with_priority(truth, seed, prio.map(|p| p + 1))
             .expect("simulated arm");

@@ -5,7 +5,7 @@
 use pa10::can::protocol::{self, Command, Message, Request, status};
 use pa10::daemon::config::TorqueSource;
 use pa10::daemon::control::{Activity, Controller, Fault, JointState, LoopParams};
-use pa10::daemon::motion::Move;
+use pa10::daemon::plan::{Limits, Move};
 use pa10::model::{Frame, Model, frame_from_pose};
 use pa10::sim::servo::{SIM_TORQUE_CONSTANTS, ServoConfig, ServoSim};
 use pa10::sim::{SimNoise, TrueRobot};
@@ -13,6 +13,17 @@ use pa10::sim::{SimNoise, TrueRobot};
 const PERIOD: f64 = 0.002;
 const VMAX: [f64; 6] = [0.5, 0.5, 1.0, 2.0, 2.0, 2.0];
 const AMAX: [f64; 6] = [1.0, 1.0, 2.0, 4.0, 4.0, 4.0];
+
+/// The nominal model's position limits with VMAX and AMAX.
+fn limits() -> Limits {
+    let m = Model::nominal();
+    Limits {
+        lower: m.limits().lower,
+        upper: m.limits().upper,
+        speed: VMAX,
+        acceleration: AMAX,
+    }
+}
 
 fn params() -> LoopParams {
     LoopParams {
@@ -23,8 +34,7 @@ fn params() -> LoopParams {
         torque_constants: SIM_TORQUE_CONSTANTS,
         payload_n: 0.0,
         payload_com: [0.0; 3],
-        speed: VMAX,
-        acceleration: AMAX,
+        limits: limits(),
         following_error: 0.01,
         feedback_timeout_s: 0.02,
         stream_deadline_s: 0.1,
@@ -151,7 +161,7 @@ fn mean_error_mm(model: &Model, truth: &TrueRobot, load_n: f64) -> f64 {
         // the target in the instrument frame, then where this model thinks that is
         let target_inst = true_base.inverse() * target_base_true;
         let target = model.base_from_instrument() * target_inst;
-        let mv = Move::cartesian(model, ctl.setpoint().q, target, &VMAX, &AMAX).unwrap();
+        let mv = Move::cartesian(model, ctl.setpoint().q, target, ctl.limits()).unwrap();
         let d = mv.duration();
         ctl.start_move(mv, lp.t).unwrap();
         lp.run(&mut ctl, d + 0.5);
@@ -224,14 +234,7 @@ fn stale_feedback_faults_and_only_reset_clears_it() {
         ctl.activity()
     );
     // moves are refused while faulted; feedback alone does not clear it
-    let mv = Move::joints(
-        &model,
-        ctl.setpoint().q,
-        [0.1, 0.4, 1.6, 0.0, 1.1, 0.0],
-        &VMAX,
-        &AMAX,
-    )
-    .unwrap();
+    let mv = Move::joints(ctl.setpoint().q, [0.1, 0.4, 1.6, 0.0, 1.1, 0.0], &limits()).unwrap();
     assert!(
         ctl.start_move(mv.clone(), t)
             .unwrap_err()
@@ -290,14 +293,7 @@ fn stop_decelerates_to_rest_within_the_limits() {
     let mut lp = Loop::new(truth, [0.0, 0.4, 1.6, 0.0, 1.1, 0.0]);
     let first = lp.feedback().unwrap();
     let mut ctl = Controller::new(model.clone(), params(), &first);
-    let mv = Move::joints(
-        &model,
-        ctl.setpoint().q,
-        [1.0, 0.9, 1.0, 0.5, 0.5, 0.5],
-        &VMAX,
-        &AMAX,
-    )
-    .unwrap();
+    let mv = Move::joints(ctl.setpoint().q, [1.0, 0.9, 1.0, 0.5, 0.5, 0.5], &limits()).unwrap();
     ctl.start_move(mv, lp.t).unwrap();
     lp.run(&mut ctl, 1.0);
     let v0 = ctl.setpoint().qd;
@@ -360,7 +356,7 @@ fn backlash_in_the_model_is_compensated_from_both_directions() {
             for q1 in via {
                 let mut q = ctl.setpoint().q;
                 q[0] = *q1;
-                let mv = Move::joints(model, ctl.setpoint().q, q, &VMAX, &AMAX).unwrap();
+                let mv = Move::joints(ctl.setpoint().q, q, ctl.limits()).unwrap();
                 let dur = mv.duration();
                 ctl.start_move(mv, lp.t).unwrap();
                 lp.run(&mut ctl, dur + 0.4);

@@ -1056,19 +1056,12 @@ fn the_demo_gathers_through_the_daemon_calibrates_and_beats_the_nominal_model() 
 fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
     use pa10::daemon::control::CommandError;
     use pa10::daemon::core::Command;
-    use pa10::daemon::motion::Move;
+    use pa10::daemon::plan::Move;
     let _busy = busy();
     let mut ls = lockstep("stale", &Model::nominal());
     let plan = |ls: &Lockstep, q: [f64; 6]| {
         let basis = ls.core.lock().plan_basis().unwrap();
-        let mv = Move::joints(
-            &basis.model,
-            basis.from,
-            q,
-            &basis.speed,
-            &basis.acceleration,
-        )
-        .unwrap();
+        let mv = Move::joints(basis.from, q, &basis.limits).unwrap();
         (Box::new(mv), basis)
     };
     let a = [0.1, 0.4, 1.6, 0.0, 1.1, 0.0];

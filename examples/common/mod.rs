@@ -1,13 +1,13 @@
 //! What the real-time daemon examples share: starting the daemon on the simulated arm from
 //! `config/sim.yaml`, and printing `status` percentiles.
 
-use pa10::daemon::config::{Config, Loaded};
+use pa10::daemon::config::{Config, Settings};
 use pa10::daemon::runtime::Daemon;
 use pa10::sim::rig::SimulatedArm;
 use serde_json::Value;
 
 /// `config/sim.yaml` at `rate_hz`, with a private socket path.
-pub fn sim_config(rate_hz: f64, tag: &str) -> Loaded {
+pub fn sim_config(rate_hz: f64, tag: &str) -> Settings {
     let base = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
     let text = std::fs::read_to_string(base.join("sim.yaml")).expect("config/sim.yaml");
     let sock = std::env::temp_dir().join(format!("pa10-{tag}-{}.sock", std::process::id()));
@@ -25,7 +25,7 @@ pub fn sim_config(rate_hz: f64, tag: &str) -> Loaded {
 
 /// The real-time daemon on the simulated arm of `cfg` (drop the daemon first).
 #[allow(dead_code)] // each example compiles this module; not every one starts this way
-pub fn start(cfg: &Loaded) -> (SimulatedArm, Daemon) {
+pub fn start(cfg: &Settings) -> (SimulatedArm, Daemon) {
     let arm = SimulatedArm::from_config(cfg).expect("simulated arm");
     let d = Daemon::start(cfg, arm.host()).expect("daemon");
     (arm, d)
@@ -56,8 +56,8 @@ pub struct Served {
 #[allow(dead_code)]
 impl Served {
     /// Starts both and waits for the socket.
-    pub fn start(cfg: &mut Loaded, fifo: bool, path: &std::path::Path) -> Self {
-        cfg.config.control.realtime.sched_fifo_priority = fifo.then_some(80);
+    pub fn start(cfg: &mut Settings, fifo: bool, path: &std::path::Path) -> Self {
+        cfg.realtime.sched_fifo_priority = fifo.then_some(80);
         let (truth, seed) = pa10::sim::rig::truth_for(cfg).expect("truth");
         let arm = SimulatedArm::start_with_priority(truth, seed, fifo.then_some(81)).expect("arm");
         let daemon = Daemon::start(cfg, arm.host()).expect("daemon");

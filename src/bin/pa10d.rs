@@ -51,27 +51,26 @@ fn main() -> ExitCode {
 }
 
 fn check(path: &Path) -> Result<()> {
-    let loaded = Config::load(path)?;
-    let c = &loaded.config;
-    let bus = match c.bus.backend {
-        Backend::Socketcan => format!("socketcan on {}", c.bus.interface.as_deref().unwrap_or("?")),
+    let s = Config::load(path)?;
+    let bus = match s.bus.backend {
+        Backend::Socketcan => format!("socketcan on {}", s.bus.interface.as_deref().unwrap_or("?")),
         Backend::Virtual => "virtual bus with the simulated controller".to_string(),
     };
     let stiff: Vec<String> = (0..6)
-        .filter(|&j| loaded.model.stiffness(j).is_some())
+        .filter(|&j| s.model.stiffness(j).is_some())
         .map(|j| format!("J{}", j + 1))
         .collect();
     println!("{}: valid", path.display());
-    println!("  bus: {bus}, {:.0} kbit/s", c.bus.bitrate / 1e3);
+    println!("  bus: {bus}, {:.0} kbit/s", s.bus.bitrate / 1e3);
     println!(
         "  cycle: {} Hz, worst-case bus load {:.1} % (limit {:.1} %)",
-        c.control.rate_hz,
-        loaded.bus_load * 100.0,
-        c.bus.max_load * 100.0
+        s.rate_hz,
+        s.bus_load * 100.0,
+        s.bus.max_load * 100.0
     );
     println!(
         "  model: {} ({})",
-        loaded.model_path.display(),
+        s.model_path.display(),
         if stiff.is_empty() {
             "rigid joints: no compensation".to_string()
         } else {
@@ -80,20 +79,15 @@ fn check(path: &Path) -> Result<()> {
     );
     println!(
         "  torques from: {:?}; payload {} N",
-        c.control.torque_source, c.payload_n
+        s.control.torque_source, s.control.payload_n
     );
-    println!(
-        "  api: {} (mode {:o})",
-        c.api.socket.display(),
-        loaded.socket_mode
-    );
+    println!("  api: {} (mode {:o})", s.api.socket.display(), s.api.mode);
     Ok(())
 }
 
 fn run(path: &Path) -> Result<()> {
     let loaded = Config::load(path)?;
-    let filter =
-        tracing_subscriber::EnvFilter::try_new(&loaded.config.log_level).context("log_level")?;
+    let filter = tracing_subscriber::EnvFilter::try_new(&loaded.log_level).context("log_level")?;
     // Lines go to stderr through a writer thread: the control thread never waits on the
     // stderr lock a client's log line holds (a priority inversion, as on the core's lock);
     // when the writer falls 128 000 lines behind, lines are dropped rather than waited for.
@@ -102,13 +96,13 @@ fn run(path: &Path) -> Result<()> {
         .with_env_filter(filter)
         .with_writer(stderr)
         .init();
-    tracing::info!(config = %path.display(), rate_hz = loaded.config.control.rate_hz, "starting");
+    tracing::info!(config = %path.display(), rate_hz = loaded.rate_hz, "starting");
     // One daemon per socket: claimed before the bus is touched.
-    let _claim = pa10::daemon::api::SocketLock::claim(&loaded.config.api.socket)
+    let _claim = pa10::daemon::api::SocketLock::claim(&loaded.api.socket)
         .map_err(anyhow::Error::msg)
         .context("claiming the API socket")?;
     // The simulated arm (virtual backend) lives as long as the daemon runs on it.
-    let (mut daemon, _arm) = match loaded.config.bus.backend {
+    let (mut daemon, _arm) = match loaded.bus.backend {
         Backend::Virtual => {
             let arm = SimulatedArm::from_config(&loaded).context("the simulated arm")?;
             let d = Daemon::start(&loaded, arm.host()).context("starting the control loop")?;
@@ -117,7 +111,7 @@ fn run(path: &Path) -> Result<()> {
         Backend::Socketcan => {
             #[cfg(target_os = "linux")]
             {
-                let iface = loaded.config.bus.interface.clone().unwrap_or_default();
+                let iface = loaded.bus.interface.clone().unwrap_or_default();
                 let bus = pa10::can::socketcan_bus::SocketCanBus::open(&iface)
                     .with_context(|| format!("opening {iface}"))?;
                 let d = Daemon::start(&loaded, bus).context("starting the control loop")?;
@@ -134,20 +128,20 @@ fn run(path: &Path) -> Result<()> {
         .enable_all()
         .build()
         .context("API runtime")?;
-    let socket = loaded.config.api.socket.clone();
-    let mode = loaded.socket_mode;
+    let socket = loaded.api.socket.clone();
+    let mode = loaded.api.mode;
     let result = rt.block_on(async move {
         let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
         let api_shared = shared.clone();
         let health = std::sync::Arc::new(pa10::daemon::api::ApiHealth::default());
         let api_health = health.clone();
-        let max_clients = loaded.config.api.max_clients;
+        let max_clients = loaded.api.max_clients;
         let live_stop = stop_rx.clone();
         let mut api = tokio::spawn(async move {
             pa10::daemon::api::serve(&socket, mode, max_clients, api_shared, api_health, stop_rx)
                 .await
         });
-        let live = &loaded.config.live;
+        let live = &loaded.live;
         if live.enabled {
             // the live view: loopback only, off by default (docs/recording.md)
             let addr = std::net::SocketAddr::from(([127, 0, 0, 1], live.port));

@@ -1,13 +1,21 @@
-//! The daemon's configuration (`config/pa10d.yaml`, `config/sim.yaml`): plain data read with
-//! serde_yaml (`deny_unknown_fields`) and validated so that every error names its key and
-//! the reason. Validating touches no bus: `pa10d --check-config FILE` is this module.
+//! The daemon's configuration (`config/pa10d.yaml`, `config/sim.yaml`), read once and
+//! validated once: the file's plain data ([`Config`], serde_yaml with `deny_unknown_fields`)
+//! becomes [`Settings`] — every value checked (each error names its key and the reason), the
+//! model loaded, every path resolved against the file's folder, every time in seconds, and
+//! the loop's ([`LoopParams`]) and the link's ([`LinkConfig`]) parameters built. Nothing
+//! after it reads the file's form again. Validating touches no bus: `pa10d --check-config
+//! FILE` is this module.
 
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::control::LoopParams;
+use super::link::LinkConfig;
+use super::vocab::Limits;
 use crate::can::protocol::check_rate;
 use crate::model::Model;
+use crate::record::RecordConfig;
 
 pub use super::vocab::TorqueSource;
 
@@ -91,10 +99,11 @@ fn default_filter() -> f64 {
     20.0
 }
 
-/// Motion and safety limits (link side).
+/// The `limits` section: motion and safety limits (link side). Validated into the loop's
+/// [`Limits`] (with the model's position limits) and time limits.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct Limits {
+pub struct LimitsConfig {
     /// Speed limits for moves, rad/s (each ≤ the model's).
     pub speed: [f64; 6],
     /// Acceleration limits, rad/s².
@@ -114,10 +123,10 @@ fn default_controller_watchdog() -> f64 {
     50.0
 }
 
-/// Streamed commands (`servo`, `jog`).
+/// The `servo` section: streamed commands (`servo`, `jog`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ServoConfig {
+pub struct StreamConfig {
     /// With no new servo setpoint or jog command for this long the arm makes a controlled
     /// stop, ms (two cycles … 10 s; default 100).
     #[serde(default = "default_servo_deadline")]
@@ -128,8 +137,8 @@ fn default_servo_deadline() -> f64 {
     100.0
 }
 
-fn default_servo() -> ServoConfig {
-    ServoConfig {
+fn default_servo() -> StreamConfig {
+    StreamConfig {
         deadline_ms: default_servo_deadline(),
     }
 }
@@ -198,16 +207,16 @@ pub struct Config {
     #[serde(default)]
     pub payload_n: f64,
     /// Motion and safety limits.
-    pub limits: Limits,
+    pub limits: LimitsConfig,
     /// Client API.
     #[serde(default = "default_api")]
     pub api: ApiConfig,
     /// Streamed commands.
     #[serde(default = "default_servo")]
-    pub servo: ServoConfig,
+    pub servo: StreamConfig,
     /// Recording every cycle (MCAP).
     #[serde(default)]
-    pub record: crate::record::RecordConfig,
+    pub record: RecordConfig,
     /// The live view (Foxglove WebSocket, loopback only; off by default).
     #[serde(default)]
     pub live: LiveConfig,
@@ -278,23 +287,59 @@ fn invalid(key: impl Into<String>, reason: impl Into<String>) -> ConfigError {
     }
 }
 
-/// A validated configuration with its model loaded.
+/// A validated configuration: what the daemon, its shell and the simulated arm are built
+/// from. Paths are resolved against the configuration file's folder, times are in seconds,
+/// and the loop's and the link's parameters are built; the file's form is not kept.
 #[derive(Debug, Clone)]
-pub struct Loaded {
-    /// The configuration.
-    pub config: Config,
-    /// The model file, resolved against the configuration's folder.
+pub struct Settings {
+    /// The CAN bus as configured.
+    pub bus: BusConfig,
+    /// The cyclic traffic's worst-case bus load at the configured rate, 0…1.
+    pub bus_load: f64,
+    /// Cycle rate, Hz.
+    pub rate_hz: f64,
+    /// The control loop's parameters (period, gain, torques, payload, limits, time limits).
+    pub control: LoopParams,
+    /// The servo link's timing (period, the controller's command watchdog).
+    pub link: LinkConfig,
+    /// Real-time options of the control thread.
+    pub realtime: Realtime,
+    /// The model file, resolved.
     pub model_path: PathBuf,
     /// The model.
     pub model: Model,
-    /// The cyclic traffic's worst-case bus load, 0…1.
-    pub bus_load: f64,
-    /// The socket mode, parsed.
-    pub socket_mode: u32,
-    /// `api.model_dir`, resolved against the configuration's folder.
+    /// The client API.
+    pub api: ApiSettings,
+    /// Recording every cycle, its folder resolved.
+    pub record: RecordConfig,
+    /// The live view.
+    pub live: LiveConfig,
+    /// Log filter (tracing syntax).
+    pub log_level: String,
+    /// The simulated robot (virtual backend only), its truth file resolved.
+    pub sim: Option<SimConfig>,
+}
+
+/// The client API, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ApiSettings {
+    /// Unix socket path.
+    pub socket: PathBuf,
+    /// Socket file mode (e.g. `0o660`).
+    pub mode: u32,
+    /// The only directory `load_model` reads from, resolved.
     pub model_dir: PathBuf,
-    /// `record`, its folder resolved against the configuration's folder.
-    pub record: crate::record::RecordConfig,
+    /// Clients connected at once.
+    pub max_clients: usize,
+}
+
+/// The settings of the shipped simulation configuration `config/sim.yaml` as it reads (the
+/// unit tests' and examples' fixture). Panics when that file is invalid: it is the
+/// repository's, not a user's.
+#[cfg(test)]
+pub(crate) fn shipped_sim() -> Settings {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config");
+    Config::load(&dir.join("sim.yaml")).expect("config/sim.yaml is valid")
 }
 
 impl Config {
@@ -307,7 +352,7 @@ impl Config {
     }
 
     /// Reads, validates and loads the model of a configuration file.
-    pub fn load(path: &Path) -> Result<Loaded, ConfigError> {
+    pub fn load(path: &Path) -> Result<Settings, ConfigError> {
         let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Io {
             path: path.to_path_buf(),
             source,
@@ -317,7 +362,7 @@ impl Config {
     }
 
     /// Validates every value and loads the model (`base`: folder relative paths start from).
-    pub fn validate(self, base: &Path) -> Result<Loaded, ConfigError> {
+    pub fn validate(self, base: &Path) -> Result<Settings, ConfigError> {
         let c = &self;
         if c.bus.backend == Backend::Socketcan
             && c.bus.interface.as_deref().is_none_or(str::is_empty)
@@ -461,6 +506,9 @@ impl Config {
         if c.api.socket.as_os_str().is_empty() {
             return Err(invalid("api.socket", "needs a path"));
         }
+        self.live
+            .validate()
+            .map_err(|e| invalid("live.rate_hz", e))?;
         if c.log_level.trim().is_empty() {
             return Err(invalid("log_level", "needs a filter such as `info`"));
         }
@@ -481,18 +529,65 @@ impl Config {
             }
             _ => {}
         }
-        let model_dir = base.join(&self.api.model_dir);
         self.record.validate().map_err(|e| invalid("record", e))?;
-        let mut record = self.record.clone();
+        let Config {
+            bus,
+            control,
+            torque_constants,
+            payload_n,
+            limits,
+            api,
+            servo,
+            mut record,
+            live,
+            log_level,
+            sim,
+            model: _,
+        } = self;
         record.dir = base.join(&record.dir);
-        Ok(Loaded {
-            config: self,
+        let period_s = 1.0 / control.rate_hz;
+        let loop_params = LoopParams {
+            period_s,
+            gain: control.position_gain,
+            torque_source: control.torque_source,
+            filter_hz: control.current_filter_hz,
+            torque_constants,
+            payload_n,
+            payload_com: [0.0; 3],
+            limits: Limits {
+                lower: model.limits().lower,
+                upper: model.limits().upper,
+                speed: limits.speed,
+                acceleration: limits.acceleration,
+            },
+            following_error: limits.following_error,
+            feedback_timeout_s: limits.feedback_timeout_ms * 1e-3,
+            stream_deadline_s: servo.deadline_ms * 1e-3,
+        };
+        // within 1…255 ms (checked above): the protocol's one-byte field
+        let watchdog_ms = limits.controller_watchdog_ms.round().clamp(1.0, 255.0) as u8;
+        Ok(Settings {
+            bus,
+            bus_load,
+            rate_hz: control.rate_hz,
+            control: loop_params,
+            link: LinkConfig::new(period_s, watchdog_ms),
+            realtime: control.realtime,
             model_path,
             model,
-            bus_load,
-            socket_mode,
-            model_dir,
+            api: ApiSettings {
+                socket: api.socket,
+                mode: socket_mode,
+                model_dir: base.join(&api.model_dir),
+                max_clients: api.max_clients,
+            },
             record,
+            live,
+            log_level,
+            sim: sim.map(|s| SimConfig {
+                truth: s.truth.map(|t| base.join(t)),
+                seed: s.seed,
+            }),
         })
     }
 }
@@ -518,10 +613,16 @@ mod tests {
 
     #[test]
     fn shipped_configs_are_valid() {
-        let s = Config::load(&root().join("sim.yaml")).unwrap();
-        assert_eq!(s.config.bus.backend, Backend::Virtual);
+        let s = shipped_sim();
+        assert_eq!(s.bus.backend, Backend::Virtual);
         assert!((s.bus_load - 0.8475).abs() < 1e-9);
-        assert_eq!(s.socket_mode, 0o660);
+        assert_eq!(s.api.mode, 0o660);
+        // the loop's parameters, in seconds, with the model's position limits
+        assert!((s.control.period_s - 0.002).abs() < 1e-15);
+        assert!((s.control.feedback_timeout_s - 0.02).abs() < 1e-15);
+        assert_eq!(s.control.limits.upper, s.model.limits().upper);
+        assert_eq!(s.link.watchdog_ms, 50);
+        assert_eq!(s.api.model_dir, root());
         // the hardware config names /etc/pa10d/calibrated.yaml; validate it against the nominal
         let mut h = Config::parse(
             &std::fs::read_to_string(root().join("pa10d.yaml")).unwrap(),
@@ -531,8 +632,8 @@ mod tests {
         assert_eq!(h.model, PathBuf::from("/etc/pa10d/calibrated.yaml"));
         h.model = root().join("model-nominal.yaml");
         let h = h.validate(&root()).unwrap();
-        assert_eq!(h.config.bus.interface.as_deref(), Some("can0"));
-        assert_eq!(h.config.control.realtime.sched_fifo_priority, Some(80));
+        assert_eq!(h.bus.interface.as_deref(), Some("can0"));
+        assert_eq!(h.realtime.sched_fifo_priority, Some(80));
     }
 
     #[test]
@@ -624,10 +725,7 @@ impl LiveConfig {
     /// Checks the rate; the reason otherwise.
     pub fn validate(&self) -> Result<(), String> {
         if !(self.rate_hz.is_finite() && (1.0..=500.0).contains(&self.rate_hz)) {
-            return Err(format!(
-                "live.rate_hz must be within 1…500 Hz, got {}",
-                self.rate_hz
-            ));
+            return Err(format!("must be within 1…500 Hz, got {}", self.rate_hz));
         }
         Ok(())
     }

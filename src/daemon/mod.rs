@@ -1,7 +1,7 @@
 //! The `pa10d` control daemon's library side.
 //!
 //! Sans IO, plain functions and state machines on plain data: [`link`] (the host side of the
-//! servo protocol session), [`control`] (one control cycle), [`motion`] (move planning),
+//! servo protocol session), [`control`] (one control cycle), [`plan`] (moves and trajectories, off-cycle),
 //! [`core`] (link + cycle + client commands + status, one state machine), [`stats`] and
 //! [`wire`] (the client protocol's request, reply and status types, and their JSON Schema).
 //! At the edges: [`runtime`] (the real-time control thread on a real bus), [`api`] (the
@@ -13,10 +13,9 @@ pub mod control;
 pub mod core;
 pub mod link;
 pub mod live;
-pub mod motion;
+pub mod plan;
 pub mod realtime;
 pub mod runtime;
 pub mod stats;
-pub mod trajectory;
 pub mod vocab;
 pub mod wire;

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use super::config::Loaded;
+use super::config::Settings;
 use super::core::{Command, Core};
 use super::link::LinkError;
 use crate::can::bus::{BusError, CanBus};
@@ -85,17 +85,16 @@ impl Daemon {
     /// Starts the control thread on `bus` and waits until the servo controller is in control
     /// mode (or the start fails). The bus is first used on the control thread (a SocketCAN
     /// socket registers with that thread's reactor then).
-    pub fn start<B: CanBus + 'static>(loaded: &Loaded, bus: B) -> Result<Self, DaemonError> {
-        let c = &loaded.config;
-        if c.control.realtime.mlockall {
+    pub fn start<B: CanBus + 'static>(settings: &Settings, bus: B) -> Result<Self, DaemonError> {
+        if settings.realtime.mlockall {
             match super::realtime::lock_memory() {
                 Ok(()) => tracing::info!("memory locked (mlockall)"),
                 Err(e) => tracing::warn!(error = %e, "mlockall not permitted; memory may page"),
             }
         }
-        let core = share(Core::from_config(loaded));
+        let core = share(Core::from_config(settings));
         let stop = Arc::new(AtomicBool::new(false));
-        let prio = c.control.realtime.sched_fifo_priority;
+        let prio = settings.realtime.sched_fifo_priority;
         let thread = {
             let (core, stop) = (core.clone(), stop.clone());
             std::thread::Builder::new()

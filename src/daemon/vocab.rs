@@ -1,7 +1,8 @@
 //! The daemon's shared vocabulary: what one cycle reads from the bus ([`JointState`]), what
-//! the planners hand the loop ([`Setpoint`]) and where the compensation's torques come from
-//! ([`TorqueSource`]). A leaf: it imports nothing of the daemon, so the link, the planners,
-//! the loop and the configuration can all use it without importing each other.
+//! the planners hand the loop ([`Setpoint`]), what every motion is held to ([`Limits`]) and
+//! where the compensation's torques come from ([`TorqueSource`]). A leaf: it imports nothing
+//! of the daemon, so the link, the planners, the loop and the configuration can all use it
+//! without importing each other.
 
 use serde::{Deserialize, Serialize};
 
@@ -25,6 +26,33 @@ pub struct Setpoint {
     pub q: [f64; 6],
     /// Link speeds, rad/s.
     pub qd: [f64; 6],
+}
+
+/// What every motion of the daemon is held to, link side: the model's position limits with
+/// the configuration's speed and acceleration limits (`limits.speed`, `limits.acceleration`,
+/// each speed ≤ the model's). Moves and trajectories are planned within it, streams are
+/// clamped to it, the position loop clamps its speed commands to it and controlled stops
+/// decelerate at its accelerations. The one limits type of the daemon.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Limits {
+    /// Lower position limits, rad.
+    pub lower: [f64; 6],
+    /// Upper position limits, rad.
+    pub upper: [f64; 6],
+    /// Speed limits, rad/s.
+    pub speed: [f64; 6],
+    /// Acceleration limits, rad/s².
+    pub acceleration: [f64; 6],
+}
+
+impl Limits {
+    /// The first joint (1…6) whose angle in `q` (rad) is not finite or outside
+    /// `[lower, upper]`, with its value.
+    pub fn violation(&self, q: &[f64; 6]) -> Option<(usize, f64)> {
+        (0..6)
+            .find(|&j| !(q[j].is_finite() && q[j] >= self.lower[j] && q[j] <= self.upper[j]))
+            .map(|j| (j + 1, q[j]))
+    }
 }
 
 /// Where the joint torques for the compensation come from.

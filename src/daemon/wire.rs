@@ -23,9 +23,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::daemon::control::TrajectoryStatus;
 use crate::daemon::link::LinkCounters;
-use crate::daemon::motion::CartesianPoint;
+use crate::daemon::plan::{CartesianPoint, TrajectoryPoint};
 use crate::daemon::stats::CycleStats;
-use crate::daemon::trajectory::TrajectoryPoint;
 use crate::record::{Mode, RecordingStatus};
 
 /// A client request: one JSON object a line, `cmd` naming it.

@@ -11,7 +11,7 @@
 
 use crate::daemon::api::MAX_LINE_BYTES;
 use crate::daemon::control::{Tolerances, TrajectoryResult, TrajectoryState, TrajectoryStatus};
-use crate::daemon::trajectory::{MAX_POINTS, TrajectoryPoint};
+use crate::daemon::plan::{MAX_POINTS, TrajectoryPoint};
 use crate::daemon::wire::{ApiRequest, State, Status};
 
 pub use msg::*;

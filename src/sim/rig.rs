@@ -11,7 +11,6 @@
 //! reads it.
 
 use std::collections::VecDeque;
-use std::path::Path;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -19,7 +18,7 @@ use super::servo::{self, ServoConfig, ServoSim, SharedServo};
 use super::{SimNoise, TrueRobot};
 use crate::can::protocol::Frame;
 use crate::can::{VirtualBus, VirtualConfig, VirtualEndpoint};
-use crate::daemon::config::{Loaded, SimConfig};
+use crate::daemon::config::{Settings, SimConfig};
 use crate::daemon::core::Core;
 use crate::daemon::runtime::lock;
 use crate::daemon::wire::{ApiRequest, Reply};
@@ -46,22 +45,22 @@ pub enum RigError {
     Runtime(#[from] std::io::Error),
 }
 
-/// The hidden true robot of a `sim` configuration section: the `truth` model file (relative
-/// to `config_dir`) or one drawn from `seed` around the nominal model with [`default_tool`].
-pub fn truth_from_config(sim: &SimConfig, config_dir: &Path) -> Result<TrueRobot, RigError> {
+/// The hidden true robot of a validated `sim` section ([`Settings::sim`]): the `truth` model
+/// file (its path resolved by validation) or one drawn from `seed` around the nominal model
+/// with [`default_tool`].
+pub fn truth_from_config(sim: &SimConfig) -> Result<TrueRobot, RigError> {
     let noise = SimNoise::default();
     Ok(match &sim.truth {
-        Some(p) => TrueRobot::from_model(Model::load(config_dir.join(p))?, noise, sim.seed),
+        Some(p) => TrueRobot::from_model(Model::load(p)?, noise, sim.seed),
         None => TrueRobot::draw(sim.seed, &Model::nominal(), &default_tool(), noise)?,
     })
 }
 
-/// The truth and seed a loaded daemon configuration asks for (its `sim` section, or the
-/// defaults).
-pub fn truth_for(loaded: &Loaded) -> Result<(TrueRobot, u64), RigError> {
-    let sim = loaded.config.sim.clone().unwrap_or_default();
-    let dir = loaded.model_path.parent().unwrap_or(Path::new("."));
-    Ok((truth_from_config(&sim, dir)?, sim.seed))
+/// The truth and seed validated daemon settings ask for (their `sim` section, its truth file
+/// resolved, or the defaults).
+pub fn truth_for(settings: &Settings) -> Result<(TrueRobot, u64), RigError> {
+    let sim = settings.sim.clone().unwrap_or_default();
+    Ok((truth_from_config(&sim)?, sim.seed))
 }
 
 /// The simulated controller running in real time on a virtual bus.
@@ -122,9 +121,9 @@ impl SimulatedArm {
         })
     }
 
-    /// The arm a loaded daemon configuration describes (its `sim` section).
-    pub fn from_config(loaded: &Loaded) -> Result<Self, RigError> {
-        let (truth, seed) = truth_for(loaded)?;
+    /// The arm validated daemon settings describe (their `sim` section).
+    pub fn from_config(settings: &Settings) -> Result<Self, RigError> {
+        let (truth, seed) = truth_for(settings)?;
         Self::start(truth, seed)
     }
 
@@ -185,12 +184,12 @@ impl Lockstep {
         }
     }
 
-    /// The daemon a loaded configuration describes with the simulated arm of its `sim`
-    /// section at [`HOME`].
-    pub fn from_config(loaded: &Loaded) -> Result<Self, RigError> {
-        let (truth, seed) = truth_for(loaded)?;
+    /// The daemon validated settings describe with the simulated arm of their `sim` section
+    /// at [`HOME`].
+    pub fn from_config(settings: &Settings) -> Result<Self, RigError> {
+        let (truth, seed) = truth_for(settings)?;
         let servo = ServoSim::new(truth, ServoConfig::default(), HOME, seed);
-        Ok(Self::new(Core::from_config(loaded), servo))
+        Ok(Self::new(Core::from_config(settings), servo))
     }
 
     /// Simulated time, s.

@@ -130,7 +130,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
     let cfg_path = dir.join("pa10d.yaml");
     std::fs::write(&cfg_path, config_text(dir, a.seed))?;
     let loaded = Config::load(&cfg_path)?;
-    let kt = loaded.config.torque_constants;
+    let kt = loaded.control.torque_constants;
     let tool = CampaignSpec::default().tool;
     let nominal = Model::nominal().with_tool(&tool)?;
 

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use pa10::daemon::control::TrajectoryState;
-use pa10::daemon::trajectory::TrajectoryPoint;
+use pa10::daemon::plan::TrajectoryPoint;
 use pa10::daemon::wire::{Answer, ApiRequest};
 
 use crate::client_cmd::{Conn, checked, status_of};

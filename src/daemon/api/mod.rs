@@ -13,9 +13,8 @@ use std::sync::Arc;
 use super::control::CommandError;
 use super::control::{Stream, Tolerances};
 use super::core::{ClientId, Command, LOCAL, PlanBasis};
-use super::motion::{Move, MoveError, cartesian_waypoints};
+use super::plan::{Move, MoveError, TrajectoryPoint, cartesian_waypoints};
 use super::runtime::{SharedCore, lock};
-use super::trajectory::TrajectoryPoint;
 use super::wire::{Answer, ApiRequest, Reply};
 use crate::model::{Model, frame_from_pose};
 
@@ -149,7 +148,7 @@ pub fn handle_from(core: &SharedCore, req: ApiRequest, client: ClientId) -> Repl
     match req {
         Request::Status {} | Request::Subscribe { .. } => status_reply(core),
         Request::MoveJoints { q } => answer(plan_and_start(core, client, |b| {
-            Move::joints(&b.model, b.from, q, &b.speed, &b.acceleration)
+            Move::joints(b.from, q, &b.limits)
         })),
         Request::MovePose {
             position,
@@ -160,7 +159,7 @@ pub fn handle_from(core: &SharedCore, req: ApiRequest, client: ClientId) -> Repl
                 Err(e) => return e,
             };
             answer(plan_and_start(core, client, |b| {
-                Move::cartesian(&b.model, b.from, target, &b.speed, &b.acceleration)
+                Move::cartesian(&b.model, b.from, target, &b.limits)
             }))
         }
         Request::Stop {} => submit(Command::Stop),
@@ -227,7 +226,7 @@ pub fn handle_from(core: &SharedCore, req: ApiRequest, client: ClientId) -> Repl
                 Ok(b) => b,
                 Err(e) => return err(e),
             };
-            match cartesian_waypoints(&basis.model, basis.from, &points) {
+            match cartesian_waypoints(&basis.model, &basis.limits, basis.from, &points) {
                 Ok(joints) => follow(core, client, joints, tolerances, Some(basis)),
                 Err(e) => err(format!("trajectory refused: {e}")),
             }

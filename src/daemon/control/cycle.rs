@@ -198,8 +198,8 @@ impl Controller {
                     value: link[j],
                 });
             }
-            out[j] =
-                (self.setpoint.qd[j] + self.p.gain * e).clamp(-self.p.speed[j], self.p.speed[j]);
+            out[j] = (self.setpoint.qd[j] + self.p.gain * e)
+                .clamp(-self.p.limits.speed[j], self.p.limits.speed[j]);
         }
         Ok((out, link))
     }

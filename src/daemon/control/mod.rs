@@ -21,10 +21,10 @@
 //!   limits, or a controller fault → [`Fault`]; the loop then commands zero speed until
 //!   `reset`.
 
-use super::motion::{Move, MoveError, Setpoint};
-use super::trajectory::{MotionLimits, Trajectory, TrajectoryPoint};
-use super::vocab::TorqueSource;
 use std::sync::Arc;
+
+use super::plan::{Move, MoveError, Setpoint, Trajectory, TrajectoryPoint};
+use super::vocab::{Limits, TorqueSource};
 
 use crate::model::{ExternalLoad, Model, NO_DIRECTION, Torques};
 use crate::record::Mode;
@@ -72,9 +72,12 @@ pub struct CycleOutput {
 }
 
 impl Controller {
-    /// A controller holding the arm where `first` says it is.
-    pub fn new(model: impl Into<Arc<Model>>, p: LoopParams, first: &JointState) -> Self {
+    /// A controller holding the arm where `first` says it is. The position limits of
+    /// `p.limits` are taken from `model` (the model file is their home).
+    pub fn new(model: impl Into<Arc<Model>>, mut p: LoopParams, first: &JointState) -> Self {
         let model = model.into();
+        p.limits.lower = model.limits().lower;
+        p.limits.upper = model.limits().upper;
         let load = ExternalLoad::hung_at(p.payload_n, &model.gravity(), &p.payload_com);
         let q_link = model
             .link_from_motor(&first.q_motor, Torques::Gravity(&load), &NO_DIRECTION)
@@ -147,15 +150,10 @@ impl Controller {
         &self.p
     }
 
-    /// Position, speed and acceleration limits in force.
-    pub fn joint_limits(&self) -> MotionLimits {
-        let lim = self.model.limits();
-        MotionLimits {
-            lower: lim.lower,
-            upper: lim.upper,
-            speed: self.p.speed,
-            acceleration: self.p.acceleration,
-        }
+    /// Position, speed and acceleration limits in force (the position limits are the
+    /// model's).
+    pub fn limits(&self) -> &Limits {
+        &self.p.limits
     }
 
     /// Starts following `points` from the current setpoint (replacing a running trajectory,
@@ -172,7 +170,7 @@ impl Controller {
             _ => {}
         }
         let scaling = self.scaling.max(self.scaling_target);
-        let traj = Trajectory::plan(&self.setpoint, points, &self.joint_limits(), scaling)?;
+        let traj = Trajectory::plan(&self.setpoint, points, &self.p.limits, scaling)?;
         self.end_trajectory(TrajectoryState::Preempted, TrajectoryResult::Preempted);
         self.trajectory = TrajectoryStatus {
             id: self.trajectory.id + 1,
@@ -217,13 +215,15 @@ impl Controller {
         if let Activity::Following { traj, tau, .. } = &self.activity
             && fraction > self.scaling
         {
-            traj.check_from(*tau, &self.joint_limits(), fraction)?;
+            traj.check_from(*tau, &self.p.limits, fraction)?;
         }
         self.scaling_target = fraction;
         Ok(())
     }
 
-    /// Replaces the model between moves (hot reload); refused while moving.
+    /// Replaces the model between moves (hot reload); refused while moving, and when a
+    /// configured speed limit exceeds the new model's joint velocity limit. Its position
+    /// limits replace the old model's.
     pub fn load_model(&mut self, model: impl Into<Arc<Model>>) -> Result<(), CommandError> {
         if matches!(
             self.activity,
@@ -231,7 +231,19 @@ impl Controller {
         ) {
             return Err(CommandError::ModelDuringMove);
         }
-        self.model = model.into();
+        let model = model.into();
+        let ml = model.limits();
+        if let Some(j) = (0..6).find(|&j| self.p.limits.speed[j] > ml.velocity[j]) {
+            return Err(CommandError::Invalid(format!(
+                "the model's joint {} velocity limit {} rad/s is below the configured speed limit {} rad/s",
+                j + 1,
+                ml.velocity[j],
+                self.p.limits.speed[j]
+            )));
+        }
+        self.p.limits.lower = ml.lower;
+        self.p.limits.upper = ml.upper;
+        self.model = model;
         Ok(())
     }
 
@@ -252,11 +264,6 @@ impl Controller {
     /// The payload's centre of mass in the tool frame, m.
     pub fn payload_com(&self) -> [f64; 3] {
         self.p.payload_com
-    }
-
-    /// Move limits in use: speed (rad/s) and acceleration (rad/s²).
-    pub fn limits(&self) -> ([f64; 6], [f64; 6]) {
-        (self.p.speed, self.p.acceleration)
     }
 
     /// Payload hung at the tool, N.
@@ -300,7 +307,7 @@ impl Controller {
         ) {
             let qd = self.setpoint.qd;
             let t = (0..6)
-                .map(|j| qd[j].abs() / self.p.acceleration[j])
+                .map(|j| qd[j].abs() / self.p.limits.acceleration[j])
                 .fold(0.0, f64::max);
             if t <= 0.0 {
                 self.activity = Activity::Holding;

@@ -5,9 +5,8 @@
 use schemars::JsonSchema;
 
 use crate::daemon::link::LinkError;
-use crate::daemon::motion::{Move, MoveError};
-use crate::daemon::trajectory::{Trajectory, TrajectoryError};
-use crate::daemon::vocab::TorqueSource;
+use crate::daemon::plan::{Move, MoveError, Trajectory, TrajectoryError};
+use crate::daemon::vocab::{Limits, TorqueSource};
 
 /// Why the loop stopped the arm.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -294,10 +293,8 @@ pub struct LoopParams {
     pub payload_n: f64,
     /// The payload's centre of mass in the tool frame, m.
     pub payload_com: [f64; 3],
-    /// Speed limits, rad/s.
-    pub speed: [f64; 6],
-    /// Acceleration limits (controlled stops), rad/s².
-    pub acceleration: [f64; 6],
+    /// Position (the model's), speed and acceleration limits.
+    pub limits: Limits,
     /// Following-error limit, rad.
     pub following_error: f64,
     /// Feedback timeout, s.
@@ -307,10 +304,12 @@ pub struct LoopParams {
 }
 
 /// Loop parameters for the unit tests of the loop and the core: 500 Hz, gain 20, measured
-/// torques through a 20 Hz filter with 10 N·m/A constants, 1 rad/s and 2 rad/s² on every
-/// joint, a 0.01 rad following-error limit, 20 ms feedback timeout, 0.1 s stream deadline.
+/// torques through a 20 Hz filter with 10 N·m/A constants, the nominal model's position
+/// limits, 1 rad/s and 2 rad/s² on every joint, a 0.01 rad following-error limit, 20 ms
+/// feedback timeout, 0.1 s stream deadline.
 #[cfg(test)]
 pub(crate) fn test_params() -> LoopParams {
+    let m = crate::model::Model::nominal();
     LoopParams {
         period_s: 0.002,
         gain: 20.0,
@@ -319,8 +318,12 @@ pub(crate) fn test_params() -> LoopParams {
         torque_constants: [10.0; 6],
         payload_n: 0.0,
         payload_com: [0.0; 3],
-        speed: [1.0; 6],
-        acceleration: [2.0; 6],
+        limits: Limits {
+            lower: m.limits().lower,
+            upper: m.limits().upper,
+            speed: [1.0; 6],
+            acceleration: [2.0; 6],
+        },
         following_error: 0.01,
         feedback_timeout_s: 0.02,
         stream_deadline_s: 0.1,

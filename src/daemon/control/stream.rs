@@ -9,7 +9,7 @@ impl Controller {
     /// limits) or jog velocities (rad/s, within the speed limits). Starts the stream from
     /// holding or continues one; refused during a move, a trajectory or a stop.
     pub fn stream(&mut self, stream: Stream, now_s: f64) -> Result<(), CommandError> {
-        let lim = self.joint_limits();
+        let lim = self.p.limits;
         if let Stream::Twist { twist, .. } = &stream {
             let n = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
             let (lin, ang) = (n(&twist[..3]), n(&twist[3..]));
@@ -117,7 +117,7 @@ impl Controller {
         let qd = jac
             .lu()
             .solve(&Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z))?;
-        let lim = self.joint_limits();
+        let lim = self.p.limits;
         let mut scale = 1.0f64;
         for j in 0..6 {
             let vmax = lim.speed[j] * self.scaling;
@@ -144,7 +144,7 @@ impl Controller {
     /// ends. No allocation.
     pub(super) fn stream_step(&mut self, stream: Stream, target_v: &[f64; 6]) {
         let dt = self.p.period_s;
-        let lim = self.joint_limits();
+        let lim = self.p.limits;
         let stream = match stream {
             Stream::Twist { twist, tool_frame } => match self.twist_to_joints(&twist, tool_frame) {
                 Some(v) => Stream::Jog(v),

@@ -4,8 +4,7 @@
 use std::sync::Arc;
 
 use crate::daemon::control::{Stream, Tolerances};
-use crate::daemon::motion::Move;
-use crate::daemon::trajectory::TrajectoryPoint;
+use crate::daemon::plan::{Limits, Move, TrajectoryPoint};
 use crate::model::Model;
 use crate::record::RecordTap;
 
@@ -18,10 +17,9 @@ pub struct PlanBasis {
     pub model: Arc<Model>,
     /// The link-side setpoint the move starts from, rad.
     pub from: [f64; 6],
-    /// Speed limits, rad/s.
-    pub speed: [f64; 6],
-    /// Acceleration limits, rad/s².
-    pub acceleration: [f64; 6],
+    /// The limits in force (the model's position limits, the loop's speed and
+    /// acceleration limits).
+    pub limits: Limits,
 }
 
 /// A client's command.

@@ -23,7 +23,7 @@ pub use commands::{ClientId, Command, LOCAL, PlanBasis};
 mod commands;
 mod status;
 
-use super::config::Loaded;
+use super::config::Settings;
 use super::control::{
     Activity, CommandError, Controller, Fault, JointState, LoopParams, check_payload,
 };
@@ -123,28 +123,16 @@ impl Core {
         }
     }
 
-    /// The core a validated configuration describes.
-    pub fn from_config(loaded: &Loaded) -> Self {
-        let c = &loaded.config;
-        let params = LoopParams {
-            period_s: 1.0 / c.control.rate_hz,
-            gain: c.control.position_gain,
-            torque_source: c.control.torque_source,
-            filter_hz: c.control.current_filter_hz,
-            torque_constants: c.torque_constants,
-            payload_n: c.payload_n,
-            payload_com: [0.0; 3],
-            speed: c.limits.speed,
-            acceleration: c.limits.acceleration,
-            following_error: c.limits.following_error,
-            feedback_timeout_s: c.limits.feedback_timeout_ms * 1e-3,
-            stream_deadline_s: c.servo.deadline_ms * 1e-3,
-        };
-        let wd = c.limits.controller_watchdog_ms.round().clamp(1.0, 255.0) as u8;
-        let link = LinkConfig::new(params.period_s, wd);
-        let mut core = Self::new(loaded.model.clone(), params, link, loaded.bus_load);
-        core.model_dir = loaded.model_dir.clone();
-        core.record_cfg = loaded.record.clone();
+    /// The core validated settings describe.
+    pub fn from_config(settings: &Settings) -> Self {
+        let mut core = Self::new(
+            settings.model.clone(),
+            settings.control.clone(),
+            settings.link,
+            settings.bus_load,
+        );
+        core.model_dir = settings.api.model_dir.clone();
+        core.record_cfg = settings.record.clone();
         core
     }
 
@@ -353,12 +341,10 @@ impl Core {
     pub fn plan_basis(&self) -> Result<PlanBasis, CommandError> {
         let c = self.ready_controller()?;
         c.ready_for_move()?;
-        let (speed, acceleration) = c.limits();
         Ok(PlanBasis {
             model: c.model_arc().clone(),
             from: c.setpoint().q,
-            speed,
-            acceleration,
+            limits: *c.limits(),
         })
     }
 

@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::daemon::control::Stream;
-use crate::daemon::motion::Move;
+use crate::daemon::plan::Move;
 use crate::daemon::runtime::lock;
 use crate::model::Frame;
 use crate::sim::rig::{HOME, Lockstep};
@@ -14,13 +14,13 @@ use crate::sim::{SimNoise, TrueRobot};
 const PERIOD: f64 = 0.002;
 
 fn core() -> Core {
-    let params = LoopParams {
+    let mut params = LoopParams {
         torque_constants: ServoConfig::default().torque_constants,
-        speed: [0.5; 6],
-        acceleration: [1.0; 6],
         following_error: 0.05,
         ..crate::daemon::control::test_params()
     };
+    params.limits.speed = [0.5; 6];
+    params.limits.acceleration = [1.0; 6];
     Core::new(Model::nominal(), params, LinkConfig::new(PERIOD, 10), 0.5)
 }
 
@@ -97,14 +97,7 @@ fn a_move_planned_before_the_model_changed_is_refused_as_stale() {
         let basis = c.plan_basis().expect("basis");
         let mut to = basis.from;
         to[0] += 0.1;
-        let mv = Move::joints(
-            &basis.model,
-            basis.from,
-            to,
-            &basis.speed,
-            &basis.acceleration,
-        )
-        .expect("plan");
+        let mv = Move::joints(basis.from, to, &basis.limits).expect("plan");
         // another model arrives between planning and starting
         c.submit(Command::LoadModel(Arc::new(Model::nominal())))
             .expect("load while holding");

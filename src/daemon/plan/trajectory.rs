@@ -13,7 +13,7 @@
 //! advances τ by the speed scaling times the wall period, so the velocities it commands are
 //! `scaling · dq/dτ` and the accelerations `scaling² · d²q/dτ²`.
 
-use super::vocab::Setpoint;
+use crate::daemon::vocab::{Limits, Setpoint};
 
 /// At most this many points in one trajectory (the request line limit allows ≈ 600 anyway).
 pub const MAX_POINTS: usize = 2000;
@@ -38,21 +38,6 @@ pub struct TrajectoryPoint {
     pub accelerations: Option<[f64; 6]>,
     /// Time of this point from the trajectory's start, s (at speed scaling 1).
     pub time_from_start: f64,
-}
-
-/// What a trajectory is checked against: the model's position limits
-/// ([`crate::model::JointLimits`]) with the loop's speed and acceleration limits (the
-/// configuration's `limits`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MotionLimits {
-    /// Lower position limits, rad.
-    pub lower: [f64; 6],
-    /// Upper position limits, rad.
-    pub upper: [f64; 6],
-    /// Speed limits, rad/s.
-    pub speed: [f64; 6],
-    /// Acceleration limits, rad/s².
-    pub acceleration: [f64; 6],
 }
 
 /// Why a trajectory was refused; the points are numbered from 0 as sent, joints 1…6.
@@ -212,7 +197,7 @@ pub struct Trajectory {
 /// A sample: positions (rad), velocities (rad/s) and accelerations (rad/s²) in trajectory
 /// time (multiply by the scaling, resp. its square, for wall time).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct Sample {
+pub struct TrajectorySample {
     /// rad.
     pub q: [f64; 6],
     /// rad/s (τ).
@@ -227,7 +212,7 @@ impl Trajectory {
     pub fn plan(
         start: &Setpoint,
         points: &[TrajectoryPoint],
-        lim: &MotionLimits,
+        lim: &Limits,
         scaling: f64,
     ) -> Result<Self, TrajectoryError> {
         if points.is_empty() || points.len() > MAX_POINTS {
@@ -333,30 +318,25 @@ impl Trajectory {
     }
 
     /// The sample at trajectory time `tau` (clamped to `[0, duration]`). No allocation.
-    pub fn sample(&self, tau: f64) -> Sample {
+    pub fn sample(&self, tau: f64) -> TrajectorySample {
         let i = self
             .segs
             .partition_point(|s| s.t1 < tau)
             .min(self.segs.len() - 1);
-        let mut s = Sample::default();
+        let mut s = TrajectorySample::default();
         self.segs[i].eval(tau, &mut s.q, &mut s.qd, &mut s.qdd);
         s
     }
 
     /// Checks positions, speeds and accelerations of the whole trajectory against `lim` at
     /// speed scaling `scaling`.
-    pub fn check(&self, lim: &MotionLimits, scaling: f64) -> Result<(), TrajectoryError> {
+    pub fn check(&self, lim: &Limits, scaling: f64) -> Result<(), TrajectoryError> {
         self.check_from(0.0, lim, scaling)
     }
 
     /// As [`Trajectory::check`], for what remains after trajectory time `tau`.
-    pub fn check_from(
-        &self,
-        tau: f64,
-        lim: &MotionLimits,
-        scaling: f64,
-    ) -> Result<(), TrajectoryError> {
-        let mut s = Sample::default();
+    pub fn check_from(&self, tau: f64, lim: &Limits, scaling: f64) -> Result<(), TrajectoryError> {
+        let mut s = TrajectorySample::default();
         for (i, seg) in self.segs.iter().enumerate().filter(|(_, s)| s.t1 >= tau) {
             for k in 0..=CHECK_SAMPLES {
                 let t = seg.t0 + (seg.t1 - seg.t0) * k as f64 / CHECK_SAMPLES as f64;
@@ -453,7 +433,7 @@ fn spline_velocities(t: &[f64], k: &mut [Knot]) {
 mod tests {
     use super::*;
 
-    const LIM: MotionLimits = MotionLimits {
+    const LIM: Limits = Limits {
         lower: [-3.0; 6],
         upper: [3.0; 6],
         speed: [1.0; 6],

@@ -9,12 +9,12 @@
 //! orientation by slerp, solves the IK on the (calibrated) model at every setpoint near the
 //! previous one, and is refused when the path leaves the workspace, crosses a singularity or
 //! a branch change, or cannot be timed within the joint limits. Pure functions, no clock.
+//! Cartesian *trajectories* (timed tool waypoints) are `cartesian.rs`'s.
 
 use nalgebra::UnitQuaternion;
 
+use crate::daemon::vocab::{Limits, Setpoint};
 use crate::model::{Frame, IkError, Model};
-
-pub use super::vocab::Setpoint;
 
 /// A smooth time-scaling `s(t)`: 0 → 1 with peak rate `v` (1/s) and peak acceleration `a`
 /// (1/s²).
@@ -123,7 +123,12 @@ const BRANCH_JUMP: f64 = 0.1;
 /// The joints that put the tool at `pose`, nearest to `q` (the previous sample of a path):
 /// refused (with the reason) when there are none, when the joints would jump more than a
 /// branch change allows, or when they leave their limits.
-fn ik_step(model: &Model, pose: &Frame, q: &[f64; 6]) -> Result<[f64; 6], String> {
+pub(super) fn ik_step(
+    model: &Model,
+    lim: &Limits,
+    pose: &Frame,
+    q: &[f64; 6],
+) -> Result<[f64; 6], String> {
     let next = model.ik_nearest(pose, q).map_err(|e| e.to_string())?;
     let jump = (0..6).map(|j| (next[j] - q[j]).abs()).fold(0.0, f64::max);
     if jump > BRANCH_JUMP {
@@ -131,100 +136,8 @@ fn ik_step(model: &Model, pose: &Frame, q: &[f64; 6]) -> Result<[f64; 6], String
             "the joints would jump {jump:.3} rad (a singularity or a branch change on the way)"
         ));
     }
-    check_limits(model, &next).map_err(|e| e.to_string())?;
+    check_limits(lim, &next).map_err(|e| e.to_string())?;
     Ok(next)
-}
-
-/// A tool-pose waypoint of `follow_cartesian` (base frame).
-#[derive(
-    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, schemars::JsonSchema,
-)]
-#[serde(deny_unknown_fields)]
-pub struct CartesianPoint {
-    /// Tool position, m.
-    pub position: [f64; 3],
-    /// Tool orientation, unit quaternion w, x, y, z.
-    pub quaternion: [f64; 4],
-    /// Time of this waypoint from the start, s (at speed scaling 1).
-    pub time_from_start: f64,
-}
-
-/// At most this many Cartesian waypoints.
-pub const MAX_WAYPOINTS: usize = 200;
-/// Largest spacing of the joint samples of a Cartesian trajectory, s.
-const CARTESIAN_SAMPLE_S: f64 = 0.02;
-
-/// Joint waypoints for tool-pose `waypoints` from the link angles `q_start` (the tool's pose
-/// there is the start): between consecutive waypoints the tool moves on a straight line
-/// (position linear, orientation by slerp) under a smooth rest-to-rest time scaling
-/// (quintic: at rest at every waypoint), sampled at most every 20 ms and solved by IK
-/// nearest to the previous sample. The result is a joint trajectory for
-/// [`super::trajectory::Trajectory::plan`], whose checks (speed, acceleration) still apply.
-pub fn cartesian_waypoints(
-    model: &Model,
-    q_start: [f64; 6],
-    waypoints: &[CartesianPoint],
-) -> Result<Vec<super::trajectory::TrajectoryPoint>, MoveError> {
-    if waypoints.is_empty() || waypoints.len() > MAX_WAYPOINTS {
-        return Err(MoveError::Waypoint {
-            point: waypoints.len(),
-            percent: 0.0,
-            reason: format!("a Cartesian trajectory needs 1…{MAX_WAYPOINTS} waypoints"),
-        });
-    }
-    let total = waypoints[waypoints.len() - 1].time_from_start;
-    let step = CARTESIAN_SAMPLE_S.max(total / (super::trajectory::MAX_POINTS as f64 - 10.0));
-    let mut from = model.fk(&q_start);
-    let (mut q, mut t0) = (q_start, 0.0);
-    let mut out = Vec::new();
-    for (i, w) in waypoints.iter().enumerate() {
-        let bad = |reason: String| MoveError::Waypoint {
-            point: i,
-            percent: 100.0,
-            reason,
-        };
-        let n = w.quaternion.iter().map(|v| v * v).sum::<f64>().sqrt();
-        if !w
-            .position
-            .iter()
-            .chain(&w.quaternion)
-            .all(|v| v.is_finite())
-            || (n - 1.0).abs() > 1e-3
-        {
-            return Err(bad(format!(
-                "position must be finite (m) and quaternion a unit [w, x, y, z] (norm {n})"
-            )));
-        }
-        if !(w.time_from_start.is_finite() && w.time_from_start > t0) {
-            return Err(bad(format!(
-                "time_from_start {} s must be greater than {t0} s",
-                w.time_from_start
-            )));
-        }
-        let to = crate::model::frame_from_pose(w.position, w.quaternion);
-        let h = w.time_from_start - t0;
-        let k_max = (h / step).ceil().max(1.0) as usize;
-        for k in 1..=k_max {
-            let u = k as f64 / k_max as f64;
-            let s = u * u * u * (10.0 - 15.0 * u + 6.0 * u * u);
-            q = ik_step(model, &interpolate(&from, &to, s), &q).map_err(|reason| {
-                MoveError::Waypoint {
-                    point: i,
-                    percent: 100.0 * u,
-                    reason,
-                }
-            })?;
-            out.push(super::trajectory::TrajectoryPoint {
-                positions: q,
-                velocities: None,
-                accelerations: None,
-                time_from_start: t0 + u * h,
-            });
-        }
-        from = to;
-        t0 = w.time_from_start;
-    }
-    Ok(out)
 }
 
 /// A planned move.
@@ -252,22 +165,17 @@ pub enum Move {
     },
 }
 
-fn check_limits(model: &Model, q: &[f64; 6]) -> Result<(), MoveError> {
-    let l = model.limits();
-    for j in 0..6 {
-        if !q[j].is_finite() {
-            return Err(MoveError::NonFinite("target joint angle"));
-        }
-        if q[j] < l.lower[j] || q[j] > l.upper[j] {
-            return Err(MoveError::JointLimit {
-                joint: j + 1,
-                value: q[j],
-                lower: l.lower[j],
-                upper: l.upper[j],
-            });
-        }
+fn check_limits(lim: &Limits, q: &[f64; 6]) -> Result<(), MoveError> {
+    match lim.violation(q) {
+        None => Ok(()),
+        Some((_, v)) if !v.is_finite() => Err(MoveError::NonFinite("target joint angle")),
+        Some((joint, value)) => Err(MoveError::JointLimit {
+            joint,
+            value,
+            lower: lim.lower[joint - 1],
+            upper: lim.upper[joint - 1],
+        }),
     }
-    Ok(())
 }
 
 /// Profile rate/acceleration so that a path with joint derivatives up to `dq_ds` (rad per
@@ -294,34 +202,27 @@ fn timing(dq_ds: &[f64; 6], d2q_ds2: &[f64; 6], v_max: &[f64; 6], a_max: &[f64; 
 }
 
 impl Move {
-    /// A synchronised joint move from `from` to `to` (rad) within `v_max`, `a_max`.
-    pub fn joints(
-        model: &Model,
-        from: [f64; 6],
-        to: [f64; 6],
-        v_max: &[f64; 6],
-        a_max: &[f64; 6],
-    ) -> Result<Self, MoveError> {
+    /// A synchronised joint move from `from` to `to` (rad) within `lim`.
+    pub fn joints(from: [f64; 6], to: [f64; 6], lim: &Limits) -> Result<Self, MoveError> {
         if from.iter().any(|x| !x.is_finite()) {
             return Err(MoveError::NonFinite("start joint angle"));
         }
-        check_limits(model, &to)?;
+        check_limits(lim, &to)?;
         let d: [f64; 6] = std::array::from_fn(|j| (to[j] - from[j]).abs());
         Ok(Move::Joints {
             from,
             to,
-            profile: timing(&d, &[0.0; 6], v_max, a_max),
+            profile: timing(&d, &[0.0; 6], &lim.speed, &lim.acceleration),
         })
     }
 
     /// A straight-line tool move from the pose at `q_start` to `to`, validated along the whole
-    /// path (reachability, limits, no branch change) and timed within `v_max`, `a_max`.
+    /// path (reachability, limits, no branch change) and timed within `lim`.
     pub fn cartesian(
         model: &Model,
         q_start: [f64; 6],
         to: Frame,
-        v_max: &[f64; 6],
-        a_max: &[f64; 6],
+        lim: &Limits,
     ) -> Result<Self, MoveError> {
         if q_start.iter().any(|x| !x.is_finite()) {
             return Err(MoveError::NonFinite("start joint angle"));
@@ -336,7 +237,7 @@ impl Move {
         for k in 1..=PATH_SAMPLES {
             let s = k as f64 / PATH_SAMPLES as f64;
             let pose = interpolate(&from, &to, s);
-            q = ik_step(model, &pose, &q).map_err(|reason| MoveError::Path {
+            q = ik_step(model, lim, &pose, &q).map_err(|reason| MoveError::Path {
                 percent: 100.0 * s,
                 reason,
             })?;
@@ -358,7 +259,7 @@ impl Move {
             from,
             to,
             q_start,
-            profile: timing(&d1, &d2, v_max, a_max),
+            profile: timing(&d1, &d2, &lim.speed, &lim.acceleration),
         })
     }
 
@@ -418,6 +319,17 @@ pub fn interpolate(a: &Frame, b: &Frame, s: f64) -> Frame {
 mod tests {
     use super::*;
 
+    /// The nominal model's position limits with these speed and acceleration limits.
+    fn limits(speed: [f64; 6], acceleration: [f64; 6]) -> Limits {
+        let m = Model::nominal();
+        Limits {
+            lower: m.limits().lower,
+            upper: m.limits().upper,
+            speed,
+            acceleration,
+        }
+    }
+
     #[test]
     fn the_profile_is_smooth_bounded_and_reaches_one() {
         for (v, a) in [(1.0, 2.0), (0.2, 5.0), (5.0, 0.5)] {
@@ -455,8 +367,8 @@ mod tests {
         let from = [0.0, 0.3, 1.2, 0.0, 0.8, 0.0];
         let to = [0.5, 0.1, 1.5, -0.4, 1.0, 1.0];
         let vmax = [0.5, 0.5, 1.0, 2.0, 2.0, 2.0];
-        let amax = [1.0, 1.0, 2.0, 4.0, 4.0, 4.0];
-        let mv = Move::joints(&m, from, to, &vmax, &amax).unwrap();
+        let lim = limits(vmax, [1.0, 1.0, 2.0, 4.0, 4.0, 4.0]);
+        let mv = Move::joints(from, to, &lim).unwrap();
         let dt = mv.duration() / 2000.0;
         let mut prev = from;
         for k in 0..=2000 {
@@ -467,13 +379,13 @@ mod tests {
             prev = sp.q;
         }
         assert_eq!(prev, to);
-        let e = Move::joints(&m, from, [0.0, 2.0, 1.0, 0.0, 0.0, 0.0], &vmax, &amax).unwrap_err();
+        let e = Move::joints(from, [0.0, 2.0, 1.0, 0.0, 0.0, 0.0], &lim).unwrap_err();
         assert!(
             e.to_string()
                 .starts_with("joint 2: target 2.0000 rad is outside"),
             "{e}"
         );
-        assert!(Move::joints(&m, from, [f64::NAN; 6], &vmax, &amax).is_err());
+        assert!(Move::joints(from, [f64::NAN; 6], &lim).is_err());
     }
 
     #[test]
@@ -488,8 +400,8 @@ mod tests {
             start.rotation,
         );
         let vmax = [0.5, 0.5, 1.0, 2.0, 2.0, 2.0];
-        let amax = [1.0, 1.0, 2.0, 4.0, 4.0, 4.0];
-        let mv = Move::cartesian(&m, q0, goal, &vmax, &amax).unwrap();
+        let lim = limits(vmax, [1.0, 1.0, 2.0, 4.0, 4.0, 4.0]);
+        let mv = Move::cartesian(&m, q0, goal, &lim).unwrap();
         let mut q = q0;
         let n = 400;
         for k in 0..=n {
@@ -514,7 +426,7 @@ mod tests {
         assert!(crate::model::pose_error(&m.fk(&q), &goal).norm() < 1e-9);
         // out of reach
         let far = Frame::from_parts(nalgebra::Translation3::new(1.5, 0.0, 0.3), start.rotation);
-        let e = Move::cartesian(&m, q0, far, &vmax, &amax).unwrap_err();
+        let e = Move::cartesian(&m, q0, far, &lim).unwrap_err();
         assert!(matches!(e, MoveError::Path { .. }), "{e}");
         // through the upright singularity (wrist centre over the J1 axis)
         let over = Frame::from_parts(
@@ -525,6 +437,6 @@ mod tests {
             ),
             start.rotation,
         );
-        assert!(Move::cartesian(&m, q0, over, &vmax, &amax).is_err());
+        assert!(Move::cartesian(&m, q0, over, &lim).is_err());
     }
 }
