@@ -2,7 +2,7 @@
 //! are encoded and decoded with the protocol codec but handed over directly, cycle by cycle,
 //! so the whole loop runs deterministically in a fraction of a second.
 
-use pa10::can::protocol::{self, Command, Message, Request, status};
+use pa10::can::protocol::{self, AxisCommand, Message, Request, status};
 use pa10::daemon::config::TorqueSource;
 use pa10::daemon::control::{Activity, Controller, Fault, JointState, LoopParams};
 use pa10::daemon::plan::{Limits, Move};
@@ -45,7 +45,7 @@ struct Loop {
     sim: ServoSim,
     t: f64,
     cycle: u16,
-    frames: Vec<protocol::Frame>,
+    frames: Vec<protocol::CanFrame>,
 }
 
 impl Loop {
@@ -96,7 +96,7 @@ impl Loop {
     fn command(&mut self, speeds: &[f64; 6]) {
         for (j, s) in speeds.iter().enumerate() {
             let f = protocol::encode(&Message::Command(
-                Command::speed(j as u8 + 1, self.cycle as u8, *s).unwrap(),
+                AxisCommand::speed(j as u8 + 1, self.cycle as u8, *s).unwrap(),
             ))
             .unwrap();
             self.sim.handle(self.t, &f, &mut self.frames);

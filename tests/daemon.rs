@@ -1015,7 +1015,7 @@ fn a_storm_of_malformed_frames_does_not_crash_the_daemon() {
         let id = rng.random_range(0..0x800u16);
         let n = rng.random_range(0..=8usize);
         let data: Vec<u8> = (0..n).map(|_| rng.random()).collect();
-        ls.inject(pa10::can::Frame::new(id, &data).unwrap());
+        ls.inject(pa10::can::CanFrame::new(id, &data).unwrap());
         if k % 200 == 0 {
             ls.run_for(1e-3);
         }

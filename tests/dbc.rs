@@ -5,7 +5,7 @@
 //! it skipped.
 
 use pa10::can::protocol::{
-    self, Command, ErrorCode, Fault, Feedback, Message, Request, ServoState, mode, status,
+    self, AxisCommand, ErrorCode, FaultCode, Feedback, Message, Request, ServoState, mode, status,
 };
 use serde_json::json;
 
@@ -18,7 +18,7 @@ fn a_real_dbc_tool_decodes_captured_frames_like_the_codec() {
         },
         Message::State {
             state: ServoState::Fault,
-            fault: Fault::Watchdog,
+            fault: FaultCode::Watchdog,
             cycle: 40_000,
         },
         Message::Sync { cycle: 65_535 },
@@ -27,8 +27,8 @@ fn a_real_dbc_tool_decodes_captured_frames_like_the_codec() {
             axis: 5,
             detail: -123_456,
         },
-        Message::Command(Command::speed(1, 200, -1.2345).unwrap()),
-        Message::Command(Command {
+        Message::Command(AxisCommand::speed(1, 200, -1.2345).unwrap()),
+        Message::Command(AxisCommand {
             axis: 6,
             mode: mode::SERVO | mode::DEADMAN | mode::BRAKE,
             cycle: 3,
@@ -58,7 +58,7 @@ fn a_real_dbc_tool_decodes_captured_frames_like_the_codec() {
         let f = protocol::encode(m).unwrap();
         // the capture decodes back to the same message in our codec too
         assert_eq!(protocol::decode(&f).unwrap(), *m);
-        let record = pa10::can::candump::Record {
+        let record = pa10::can::candump::LoggedFrame {
             time_s: k as f64 * 0.002,
             iface: "vcan0".into(),
             frame: f,

@@ -7,8 +7,8 @@ use std::time::Duration;
 
 use pa10::can::bus::{BusError, BusEvent, CanBus};
 use pa10::can::protocol::{
-    self, ANGLE_LSB, Command, ErrorCode, Fault, Feedback, Frame, Message, Request, ServoState,
-    status,
+    self, ANGLE_LSB, AxisCommand, CanFrame, ErrorCode, FaultCode, Feedback, Message, Request,
+    ServoState, status,
 };
 use pa10::can::{VirtualBus, VirtualConfig, VirtualEndpoint};
 use pa10::model::Model;
@@ -74,7 +74,7 @@ impl Rig {
         }
     }
 
-    async fn control(&mut self, r: Request) -> (ServoState, Fault) {
+    async fn control(&mut self, r: Request) -> (ServoState, FaultCode) {
         self.send(Message::Control {
             request: r,
             watchdog_ms: 0,
@@ -114,7 +114,7 @@ impl Rig {
         }
         for (j, s) in speeds.iter().enumerate() {
             self.send(Message::Command(
-                Command::speed(j as u8 + 1, c as u8, *s).unwrap(),
+                AxisCommand::speed(j as u8 + 1, c as u8, *s).unwrap(),
             ))
             .await;
         }
@@ -125,11 +125,11 @@ impl Rig {
     async fn start(&mut self) {
         assert_eq!(
             self.control(Request::ReleaseBrakes).await,
-            (ServoState::BrakeRelease, Fault::None)
+            (ServoState::BrakeRelease, FaultCode::None)
         );
         assert_eq!(
             self.control(Request::StartControl).await,
-            (ServoState::Control, Fault::None)
+            (ServoState::Control, FaultCode::None)
         );
     }
 }
@@ -146,7 +146,7 @@ async fn the_state_machine_follows_the_protocol() {
     // START_CONTROL before the brakes are released is refused, state unchanged
     assert_eq!(
         r.control(Request::StartControl).await,
-        (ServoState::Stopped, Fault::Rejected)
+        (ServoState::Stopped, FaultCode::Rejected)
     );
     r.start().await;
     for _ in 0..20 {
@@ -176,11 +176,11 @@ async fn the_state_machine_follows_the_protocol() {
         .await;
     assert!(stopped.is_some());
     // ESTOP from anywhere; RESET_FAULT only from FAULT
-    assert_eq!(r.control(Request::ResetFault).await.1, Fault::Rejected);
+    assert_eq!(r.control(Request::ResetFault).await.1, FaultCode::Rejected);
     r.start().await;
     assert_eq!(
         r.control(Request::Estop).await,
-        (ServoState::Stopped, Fault::None)
+        (ServoState::Stopped, FaultCode::None)
     );
     assert_eq!(r.sim.lock().unwrap().state(), ServoState::Stopped);
 }
@@ -212,7 +212,7 @@ async fn the_watchdog_stops_the_servo_when_commands_stop() {
             }
         })
         .await;
-    assert_eq!(s, Some((ServoState::Fault, Fault::Watchdog)));
+    assert_eq!(s, Some((ServoState::Fault, FaultCode::Watchdog)));
     let before = r.sim.lock().unwrap().motor_angles();
     tokio::time::sleep(Duration::from_millis(200)).await;
     assert_eq!(
@@ -227,7 +227,7 @@ async fn the_watchdog_stops_the_servo_when_commands_stop() {
     );
     assert_eq!(
         r.control(Request::ResetFault).await,
-        (ServoState::Stopped, Fault::None)
+        (ServoState::Stopped, FaultCode::None)
     );
 }
 
@@ -314,13 +314,13 @@ async fn injected_faults_show_up_as_the_protocol_says() {
         Ok(BusEvent::BusOff)
     );
     assert_eq!(
-        r.host.send(Frame::new(0x080, &[0, 0]).unwrap()).await,
+        r.host.send(CanFrame::new(0x080, &[0, 0]).unwrap()).await,
         Err(BusError::BusOff)
     );
     // … and the controller, no longer commanded, trips its watchdog
     tokio::time::sleep(Duration::from_millis(200)).await;
     assert_eq!(r.sim.lock().unwrap().state(), ServoState::Fault);
-    assert_eq!(r.sim.lock().unwrap().fault(), Fault::Watchdog);
+    assert_eq!(r.sim.lock().unwrap().fault(), FaultCode::Watchdog);
 }
 
 #[tokio::test(start_paused = true)]
@@ -391,7 +391,7 @@ async fn traffic_logs_as_candump_and_replays_identically() {
     // SYNC in, six FEEDBACK out (plus a heartbeat perhaps)
     let entries: Vec<_> = text
         .lines()
-        .map(|l| pa10::can::candump::Record::parse(l).unwrap())
+        .map(|l| pa10::can::candump::LoggedFrame::parse(l).unwrap())
         .collect();
     assert!(entries.len() >= 7, "{text}");
     assert_eq!(entries[0].frame.id(), 0x080);

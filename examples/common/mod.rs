@@ -189,7 +189,7 @@ impl HostWatch {
             if fifo {
                 let _ = pa10::daemon::realtime::set_fifo(90);
             }
-            let mut h = pa10::daemon::stats::Histogram::default();
+            let mut h = pa10::daemon::timing::Histogram::default();
             let period = std::time::Duration::from_millis(1);
             while !s.load(Ordering::Relaxed) {
                 let due = std::time::Instant::now() + period;

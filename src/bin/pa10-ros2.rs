@@ -31,7 +31,7 @@ use pa10::daemon::api::{Client, ClientError};
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, Status};
 use pa10::ros2::{
     DiagnosticArray, Ending, FollowJointTrajectoryFeedback, FollowJointTrajectoryGoal,
-    FollowJointTrajectoryResult, Header, JOINT_NAMES, JointState, Time, TriggerRequest,
+    FollowJointTrajectoryResult, Header, JOINT_NAMES, JointStateMsg, Time, TriggerRequest,
     TriggerResponse, code,
 };
 use ros2_client::action::{
@@ -220,7 +220,7 @@ fn joint_states(
     args: &Args,
     shared: Rc<RefCell<Shared>>,
 ) -> Result<impl std::future::Future<Output = Result<()>> + use<>> {
-    let publisher = publisher::<JointState>(node, "joint_states", "sensor_msgs", "JointState")?;
+    let publisher = publisher::<JointStateMsg>(node, "joint_states", "sensor_msgs", "JointState")?;
     let mut s = UnixStream::connect(&args.socket)
         .with_context(|| format!("connecting to pa10d at {}", args.socket.display()))?;
     let mut line = serde_json::to_vec(&ApiRequest::Subscribe {
@@ -250,7 +250,7 @@ fn joint_states(
                 _ => vec![0.0; 6],
             };
             last = Some((time_s, q));
-            let msg = JointState {
+            let msg = JointStateMsg {
                 header: Header {
                     stamp: now(),
                     frame_id: String::new(),

@@ -5,13 +5,13 @@
 use std::future::Future;
 use std::time::Duration;
 
-use super::protocol::Frame;
+use super::protocol::CanFrame;
 
 /// Something that arrived from the bus.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum BusEvent {
     /// A data frame.
-    Frame(Frame),
+    Frame(CanFrame),
     /// An error frame was seen (the controller's error report, as text-free flags).
     ErrorFrame {
         /// Raw error class bits (SocketCAN `CAN_ERR_*`), 0 on the virtual bus.
@@ -67,7 +67,7 @@ pub fn passes(filters: &[Filter], id: u16) -> bool {
 /// A CAN interface: send frames, receive events with a timeout, filter by identifier.
 pub trait CanBus: Send {
     /// Sends one frame.
-    fn send(&mut self, frame: Frame) -> impl Future<Output = Result<(), BusError>> + Send;
+    fn send(&mut self, frame: CanFrame) -> impl Future<Output = Result<(), BusError>> + Send;
     /// The next event, or [`BusError::Timeout`] after `timeout`.
     fn recv(
         &mut self,

@@ -1,4 +1,4 @@
-//! can-utils' candump log format (`(ts) iface ID#DATA`): a typed [`Record`] per line,
+//! can-utils' candump log format (`(ts) iface ID#DATA`): a typed [`LoggedFrame`] per line,
 //! reading a log with precise errors, writing traffic as it passes, and replaying a log onto
 //! a bus with its original timing.
 
@@ -8,17 +8,17 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use super::bus::{BusError, CanBus};
-use super::protocol::Frame;
+use super::protocol::CanFrame;
 
 /// One logged frame.
 #[derive(Debug, Clone, PartialEq)]
-pub struct Record {
+pub struct LoggedFrame {
     /// Time stamp, s.
     pub time_s: f64,
     /// Interface name (e.g. `vcan0`).
     pub iface: String,
     /// The frame.
-    pub frame: Frame,
+    pub frame: CanFrame,
 }
 
 /// Why a candump line or log was refused.
@@ -58,7 +58,7 @@ pub enum CandumpError {
 /// The largest log [`read_log`] reads, bytes (≈ 5 minutes of 500 Hz traffic).
 pub const MAX_LOG_BYTES: u64 = 256 << 20;
 
-impl Record {
+impl LoggedFrame {
     /// Parses one line; the error says what is wrong.
     pub fn parse(line: &str) -> Result<Self, &'static str> {
         let rest = line.trim().strip_prefix('(').ok_or("no `(time)`")?;
@@ -85,7 +85,7 @@ impl Record {
             .map(|i| u8::from_str_radix(&data[i..i + 2], 16))
             .collect::<Result<Vec<u8>, _>>()
             .map_err(|_| "data is not hexadecimal")?;
-        let frame = Frame::new(id, &bytes).ok_or("identifier beyond 11 bits")?;
+        let frame = CanFrame::new(id, &bytes).ok_or("identifier beyond 11 bits")?;
         Ok(Self {
             time_s,
             iface,
@@ -94,7 +94,7 @@ impl Record {
     }
 }
 
-impl fmt::Display for Record {
+impl fmt::Display for LoggedFrame {
     /// `(ts) iface ID#DATA`, the time with microseconds.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
@@ -112,7 +112,7 @@ impl fmt::Display for Record {
 }
 
 /// Reads a candump log; a malformed line is an error naming it. Blank lines are skipped.
-pub fn read_log(path: &Path) -> Result<Vec<Record>, CandumpError> {
+pub fn read_log(path: &Path) -> Result<Vec<LoggedFrame>, CandumpError> {
     let io = |source| CandumpError::Io {
         path: path.to_path_buf(),
         source,
@@ -129,7 +129,7 @@ pub fn read_log(path: &Path) -> Result<Vec<Record>, CandumpError> {
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
         .map(|(i, l)| {
-            Record::parse(l).map_err(|reason| CandumpError::Line {
+            LoggedFrame::parse(l).map_err(|reason| CandumpError::Line {
                 path: path.to_path_buf(),
                 line: i + 1,
                 reason,
@@ -154,8 +154,8 @@ impl<W: Write> Logger<W> {
         }
     }
     /// Logs `frame` at `ts_s` seconds; IO errors are reported, not fatal to the caller's bus.
-    pub fn log(&mut self, ts_s: f64, frame: &Frame) -> std::io::Result<()> {
-        let r = Record {
+    pub fn log(&mut self, ts_s: f64, frame: &CanFrame) -> std::io::Result<()> {
+        let r = LoggedFrame {
             time_s: ts_s,
             iface: std::mem::take(&mut self.iface),
             frame: *frame,
@@ -175,7 +175,7 @@ impl<W: Write> Logger<W> {
 }
 
 /// Sends the logged frames onto `bus`, spaced as they were logged (first frame at once).
-pub async fn replay<B: CanBus>(bus: &mut B, records: &[Record]) -> Result<usize, BusError> {
+pub async fn replay<B: CanBus>(bus: &mut B, records: &[LoggedFrame]) -> Result<usize, BusError> {
     let Some(first) = records.first() else {
         return Ok(0);
     };
@@ -194,18 +194,18 @@ mod tests {
 
     #[test]
     fn records_round_trip_and_bad_lines_say_why() {
-        let f = Frame::new(0x181, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
-        let r = Record {
+        let f = CanFrame::new(0x181, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+        let r = LoggedFrame {
             time_s: 12.5,
             iface: "vcan0".into(),
             frame: f,
         };
         let l = r.to_string();
         assert_eq!(l, "(12.500000) vcan0 181#0102030405060708");
-        assert_eq!(Record::parse(&l), Ok(r));
+        assert_eq!(LoggedFrame::parse(&l), Ok(r));
         assert_eq!(
-            Record::parse("(1.0) can0 080#").map(|r| r.frame),
-            Ok(Frame::new(0x80, &[]).unwrap())
+            LoggedFrame::parse("(1.0) can0 080#").map(|r| r.frame),
+            Ok(CanFrame::new(0x80, &[]).unwrap())
         );
         for (line, why) in [
             ("garbage", "time"),
@@ -217,7 +217,7 @@ mod tests {
             ("(1.0) can0 080#001122334455667788", "whole bytes"),
             ("(inf) can0 080#00", "finite"),
         ] {
-            let e = Record::parse(line).unwrap_err();
+            let e = LoggedFrame::parse(line).unwrap_err();
             assert!(e.contains(why), "{line}: {e}");
         }
     }

@@ -14,6 +14,6 @@ pub mod socketcan_bus;
 pub mod virtual_bus;
 
 pub use bus::{BusError, BusEvent, CanBus, Filter};
-pub use protocol::{Frame, Message, bus_load, check_rate, decode, encode};
+pub use protocol::{CanFrame, Message, bus_load, check_rate, decode, encode};
 #[cfg(feature = "daemon")]
 pub use virtual_bus::{VirtualBus, VirtualConfig, VirtualEndpoint};

@@ -1,6 +1,6 @@
 //! The sans-IO codec of the pa10 CAN protocol (`docs/protocol.md`): frames ⇄ typed messages.
 //!
-//! No sockets, no clocks: [`encode`] and [`decode`] are pure functions on [`Frame`]s. Fields
+//! No sockets, no clocks: [`encode`] and [`decode`] are pure functions on [`CanFrame`]s. Fields
 //! are kept in wire units (counts) so that a round trip is exact; constructors and accessors
 //! convert to SI with range checks. Every malformed frame is a [`DecodeError`], never a panic.
 
@@ -28,13 +28,13 @@ pub const ID_FEEDBACK: u16 = 0x181;
 
 /// A classic CAN data frame: 11-bit identifier and 0–8 data bytes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct Frame {
+pub struct CanFrame {
     id: u16,
     len: u8,
     data: [u8; 8],
 }
 
-impl Frame {
+impl CanFrame {
     /// A frame; `None` when `id` exceeds 11 bits or `data` 8 bytes.
     pub fn new(id: u16, data: &[u8]) -> Option<Self> {
         if id > 0x7FF || data.len() > 8 {
@@ -173,7 +173,7 @@ pub enum ServoState {
 
 wire_enum! {
 /// Fault codes of STATE.
-pub enum Fault {
+pub enum FaultCode {
     /// No fault.
     None = 0,
     /// Command watchdog expired.
@@ -237,7 +237,7 @@ pub mod status {
 
 /// One axis command (wire units).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Command {
+pub struct AxisCommand {
     /// Axis 1…6.
     pub axis: u8,
     /// [`mode`] bits.
@@ -250,7 +250,7 @@ pub struct Command {
     pub torque: i16,
 }
 
-impl Command {
+impl AxisCommand {
     /// A speed-mode command with servo on, brake off: `speed` rad/s, rounded to 0.2 mrad/s.
     pub fn speed(axis: u8, cycle: u8, speed_rad_s: f64) -> Result<Self, EncodeError> {
         let s = counts_i16(speed_rad_s, SPEED_LSB, "speed")?;
@@ -262,7 +262,7 @@ impl Command {
             torque: 0,
         })
     }
-    /// The speed-mode command the loop sends every cycle: as [`Command::speed`], but a speed
+    /// The speed-mode command the loop sends every cycle: as [`AxisCommand::speed`], but a speed
     /// beyond the field's range saturates at it and a non-finite one is 0 rad/s (the loop
     /// has already clamped to the joint's limit; this never fails inside a cycle).
     pub fn speed_saturating(axis: u8, cycle: u8, speed_rad_s: f64) -> Self {
@@ -327,8 +327,8 @@ pub enum Message {
     State {
         /// State.
         state: ServoState,
-        /// Fault.
-        fault: Fault,
+        /// Fault code.
+        fault: FaultCode,
         /// Last applied cycle.
         cycle: u16,
     },
@@ -347,7 +347,7 @@ pub enum Message {
         detail: i32,
     },
     /// Axis command.
-    Command(Command),
+    Command(AxisCommand),
     /// Axis feedback.
     Feedback(Feedback),
 }
@@ -437,9 +437,9 @@ fn axis_ok(axis: u8) -> Result<(), EncodeError> {
 }
 
 /// Encodes a message. Errors when an axis is not 1…6 or mode/status bits are undefined.
-pub fn encode(m: &Message) -> Result<Frame, EncodeError> {
+pub fn encode(m: &Message) -> Result<CanFrame, EncodeError> {
     let f = |id: u16, d: &[u8]| {
-        Frame::new(id, d).ok_or(EncodeError::OutOfRange {
+        CanFrame::new(id, d).ok_or(EncodeError::OutOfRange {
             field: "frame",
             value: id as f64,
         })
@@ -499,7 +499,7 @@ pub fn encode(m: &Message) -> Result<Frame, EncodeError> {
     }
 }
 
-fn dlc(frame: &Frame, expected: usize) -> Result<&[u8], DecodeError> {
+fn dlc(frame: &CanFrame, expected: usize) -> Result<&[u8], DecodeError> {
     if frame.dlc() != expected {
         return Err(DecodeError::WrongDlc {
             id: frame.id(),
@@ -519,7 +519,7 @@ fn range(id: u16, field: &'static str, value: u8) -> DecodeError {
 }
 
 /// Decodes a frame.
-pub fn decode(frame: &Frame) -> Result<Message, DecodeError> {
+pub fn decode(frame: &CanFrame) -> Result<Message, DecodeError> {
     let id = frame.id();
     match id {
         ID_CONTROL => {
@@ -533,7 +533,7 @@ pub fn decode(frame: &Frame) -> Result<Message, DecodeError> {
         ID_STATE => {
             let d = dlc(frame, 4)?;
             let state = ServoState::from_wire(d[0]).ok_or_else(|| range(id, "state", d[0]))?;
-            let fault = Fault::from_wire(d[1]).ok_or_else(|| range(id, "fault", d[1]))?;
+            let fault = FaultCode::from_wire(d[1]).ok_or_else(|| range(id, "fault", d[1]))?;
             Ok(Message::State {
                 state,
                 fault,
@@ -563,7 +563,7 @@ pub fn decode(frame: &Frame) -> Result<Message, DecodeError> {
             if d[0] & 0xF0 != 0 {
                 return Err(range(id, "mode", d[0]));
             }
-            Ok(Message::Command(Command {
+            Ok(Message::Command(AxisCommand {
                 axis: (id - ID_COMMAND + 1) as u8,
                 mode: d[0],
                 cycle: d[1],
@@ -609,7 +609,7 @@ mod tests {
 
     #[test]
     fn scalings_are_the_documented_ones() {
-        let f = encode(&Message::Command(Command::speed(2, 7, 1.0).unwrap())).unwrap();
+        let f = encode(&Message::Command(AxisCommand::speed(2, 7, 1.0).unwrap())).unwrap();
         assert_eq!(f.id(), 0x102);
         assert_eq!(f.data(), &[0x02, 7, 0x88, 0x13, 0, 0, 0, 0]); // 5000 counts = 1 rad/s
         let fb = Feedback {
@@ -623,24 +623,24 @@ mod tests {
         let Message::Feedback(b) = m else { panic!() };
         assert!((b.angle_rad() - std::f64::consts::TAU).abs() < 1e-12);
         assert_eq!(b.current_a(), -1.5);
-        assert!(Command::speed(1, 0, 7.0).is_err());
+        assert!(AxisCommand::speed(1, 0, 7.0).is_err());
         // the loop's encoder saturates instead, and sends 0 for a non-finite speed
-        let max = Command::speed_saturating(1, 0, 7.0);
+        let max = AxisCommand::speed_saturating(1, 0, 7.0);
         assert_eq!(max.speed, i16::MAX);
-        assert_eq!(Command::speed_saturating(1, 0, -7.0).speed, i16::MIN);
-        assert_eq!(Command::speed_saturating(1, 0, f64::NAN).speed, 0);
+        assert_eq!(AxisCommand::speed_saturating(1, 0, -7.0).speed, i16::MIN);
+        assert_eq!(AxisCommand::speed_saturating(1, 0, f64::NAN).speed, 0);
         assert_eq!(
-            Command::speed_saturating(2, 7, 1.0),
-            Command::speed(2, 7, 1.0).expect("in range")
+            AxisCommand::speed_saturating(2, 7, 1.0),
+            AxisCommand::speed(2, 7, 1.0).expect("in range")
         );
-        assert!(Command::speed(1, 0, f64::NAN).is_err());
+        assert!(AxisCommand::speed(1, 0, f64::NAN).is_err());
         assert!(angle_counts(1e6).is_err());
         assert_eq!(current_counts(99.0), i16::MAX);
     }
 
     #[test]
     fn malformed_frames_are_typed_errors() {
-        let fr = |id, d: &[u8]| Frame::new(id, d).unwrap();
+        let fr = |id, d: &[u8]| CanFrame::new(id, d).unwrap();
         assert_eq!(decode(&fr(0x123, &[])), Err(DecodeError::UnknownId(0x123)));
         assert_eq!(
             decode(&fr(0x181, &[0; 7])),
@@ -669,10 +669,10 @@ mod tests {
             decode(&fr(0x081, &[1, 9, 0, 0, 0, 0, 0, 0])),
             Err(DecodeError::OutOfRange { field: "axis", .. })
         ));
-        assert!(Frame::new(0x800, &[]).is_none());
-        assert!(Frame::new(0x100, &[0; 9]).is_none());
+        assert!(CanFrame::new(0x800, &[]).is_none());
+        assert!(CanFrame::new(0x100, &[0; 9]).is_none());
         assert!(
-            encode(&Message::Command(Command {
+            encode(&Message::Command(AxisCommand {
                 axis: 7,
                 mode: 0,
                 cycle: 0,
@@ -706,12 +706,12 @@ mod tests {
                     ServoState::Fault
                 ][s as usize],
                 fault: [
-                    Fault::None,
-                    Fault::Watchdog,
-                    Fault::AxisFault,
-                    Fault::Limit,
-                    Fault::Bus,
-                    Fault::Rejected
+                    FaultCode::None,
+                    FaultCode::Watchdog,
+                    FaultCode::AxisFault,
+                    FaultCode::Limit,
+                    FaultCode::Bus,
+                    FaultCode::Rejected
                 ][f as usize],
                 cycle
             }),
@@ -729,7 +729,7 @@ mod tests {
                 detail
             }),
             (1u8..=6, 0u8..16, any::<u8>(), any::<i16>(), any::<i16>()).prop_map(
-                |(axis, mode, cycle, speed, torque)| Message::Command(Command {
+                |(axis, mode, cycle, speed, torque)| Message::Command(AxisCommand {
                     axis,
                     mode,
                     cycle,
@@ -760,7 +760,7 @@ mod tests {
 
         #[test]
         fn any_frame_decodes_or_errs_without_panicking(id in 0u16..0x800, data in proptest::collection::vec(any::<u8>(), 0..=8)) {
-            let f = Frame::new(id, &data).unwrap();
+            let f = CanFrame::new(id, &data).unwrap();
             if let Ok(m) = decode(&f) {
                 prop_assert_eq!(encode(&m).unwrap(), f);
             }

@@ -10,7 +10,7 @@ use tokio::io::Interest;
 use tokio::io::unix::AsyncFd;
 
 use super::bus::{BusError, BusEvent, CanBus, Filter};
-use super::protocol::Frame;
+use super::protocol::CanFrame;
 
 /// A SocketCAN interface. Opening it does not need an async runtime: the socket registers
 /// with the reactor of the runtime that first sends or receives on it (the daemon's control
@@ -56,7 +56,7 @@ impl SocketCanBus {
 }
 
 impl CanBus for SocketCanBus {
-    async fn send(&mut self, frame: Frame) -> Result<(), BusError> {
+    async fn send(&mut self, frame: CanFrame) -> Result<(), BusError> {
         let id = StandardId::new(frame.id()).ok_or_else(|| io("identifier beyond 11 bits"))?;
         let f =
             socketcan::CanFrame::new(id, frame.data()).ok_or_else(|| io("frame construction"))?;
@@ -95,7 +95,7 @@ impl CanBus for SocketCanBus {
                     let socketcan::Id::Standard(id) = d.id() else {
                         continue;
                     };
-                    if let Some(fr) = Frame::new(id.as_raw(), d.data()) {
+                    if let Some(fr) = CanFrame::new(id.as_raw(), d.data()) {
                         return Ok(BusEvent::Frame(fr));
                     }
                 }

@@ -14,7 +14,7 @@ use tokio::sync::mpsc;
 use tokio::time::Instant;
 
 use super::bus::{BusError, BusEvent, CanBus, Filter, passes};
-use super::protocol::Frame;
+use super::protocol::CanFrame;
 
 /// Fault injection and timing of a virtual bus.
 #[derive(Debug, Clone, PartialEq)]
@@ -54,7 +54,7 @@ pub struct BusStats {
 
 #[derive(Debug, Clone, Copy)]
 enum Delivery {
-    Frame(Frame, Instant),
+    Frame(CanFrame, Instant),
     BusOff,
 }
 
@@ -85,7 +85,7 @@ pub struct VirtualEndpoint {
     filters: Vec<Filter>,
     /// A frame taken from the channel whose delivery time had not come yet: kept, so that a
     /// receive that times out (or is dropped) while it waits does not lose it.
-    held: Option<(Frame, Instant)>,
+    held: Option<(CanFrame, Instant)>,
 }
 
 impl VirtualBus {
@@ -153,7 +153,7 @@ impl Drop for VirtualEndpoint {
 }
 
 impl CanBus for VirtualEndpoint {
-    async fn send(&mut self, frame: Frame) -> Result<(), BusError> {
+    async fn send(&mut self, frame: CanFrame) -> Result<(), BusError> {
         let mut s = self.shared.lock().unwrap_or_else(|p| p.into_inner());
         if s.bus_off {
             return Err(BusError::BusOff);
@@ -170,7 +170,7 @@ impl CanBus for VirtualEndpoint {
             let mut d = [0u8; 8];
             d[..frame.dlc()].copy_from_slice(frame.data());
             d[bit / 8] ^= 1 << (bit % 8);
-            delivered = Frame::new(frame.id(), &d[..frame.dlc()]).unwrap_or(frame);
+            delivered = CanFrame::new(frame.id(), &d[..frame.dlc()]).unwrap_or(frame);
         }
         let at = Instant::now() + latency;
         for (i, slot) in s.slots.iter().enumerate() {
@@ -232,7 +232,7 @@ fn crc15(bits: &[bool]) -> u16 {
 /// Exact length on the wire of a standard data frame, bits: SOF … CRC with the bit stuffing
 /// this very frame needs, then CRC delimiter, ACK slot and delimiter, EOF and the 3-bit
 /// interframe space.
-pub fn exact_frame_bits(f: &Frame) -> u32 {
+pub fn exact_frame_bits(f: &CanFrame) -> u32 {
     let mut bits: Vec<bool> = Vec::with_capacity(128);
     bits.push(false); // SOF
     for i in (0..11).rev() {
@@ -277,7 +277,7 @@ mod tests {
     fn exact_bits_lie_between_nominal_and_worst_case() {
         for dlc in 0..=8 {
             for pattern in [0x00u8, 0xFF, 0x55, 0x0F] {
-                let f = Frame::new(0x7FF & (0x555 + dlc as u16), &vec![pattern; dlc]).unwrap();
+                let f = CanFrame::new(0x7FF & (0x555 + dlc as u16), &vec![pattern; dlc]).unwrap();
                 let b = exact_frame_bits(&f);
                 assert!(
                     b >= frame_bits_nominal(dlc) && b <= frame_bits_worst(dlc),
@@ -286,7 +286,7 @@ mod tests {
             }
         }
         // all-zero payloads stuff a bit every four: clearly more than nominal
-        let zeros = Frame::new(0x000, &[0; 8]).unwrap();
+        let zeros = CanFrame::new(0x000, &[0; 8]).unwrap();
         assert!(exact_frame_bits(&zeros) > frame_bits_nominal(8) + 15);
         // CRC-15 of the empty message is 0
         assert_eq!(crc15(&[]), 0);
@@ -301,7 +301,7 @@ mod tests {
         let mut a = bus.endpoint(false);
         let mut b = bus.endpoint(false);
         let mut c = bus.endpoint(true);
-        let f = Frame::new(0x181, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
+        let f = CanFrame::new(0x181, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap();
         let t0 = Instant::now();
         a.send(f).await.unwrap();
         assert_eq!(
@@ -332,10 +332,12 @@ mod tests {
         // filters
         b.set_filters(&[Filter::exact(0x080)]).unwrap();
         a.send(f).await.unwrap();
-        a.send(Frame::new(0x080, &[1, 0]).unwrap()).await.unwrap();
+        a.send(CanFrame::new(0x080, &[1, 0]).unwrap())
+            .await
+            .unwrap();
         assert_eq!(
             b.recv(Duration::from_millis(10)).await.unwrap(),
-            BusEvent::Frame(Frame::new(0x080, &[1, 0]).unwrap())
+            BusEvent::Frame(CanFrame::new(0x080, &[1, 0]).unwrap())
         );
         // load counter
         let s = bus.stats();

@@ -16,6 +16,6 @@ pub mod live;
 pub mod plan;
 pub mod realtime;
 pub mod runtime;
-pub mod stats;
+pub mod timing;
 pub mod vocab;
 pub mod wire;

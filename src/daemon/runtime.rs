@@ -261,7 +261,7 @@ async fn ready_now<B: CanBus>(bus: &mut B) -> Option<Result<crate::can::bus::Bus
 fn flush<B: CanBus>(rt: &tokio::runtime::Runtime, bus: &mut B, core: &SharedCore, now: f64) {
     loop {
         // one lock for what is queued (a cycle's commands, a SYNC, a request), no allocation
-        let mut out: [Option<crate::can::Frame>; 16] = [None; 16];
+        let mut out: [Option<crate::can::CanFrame>; 16] = [None; 16];
         {
             let mut c = lock_rt(core);
             for slot in out.iter_mut() {

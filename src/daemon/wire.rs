@@ -24,7 +24,7 @@ use serde::{Deserialize, Serialize};
 use crate::daemon::control::TrajectoryStatus;
 use crate::daemon::link::LinkCounters;
 use crate::daemon::plan::{CartesianPoint, TrajectoryPoint};
-use crate::daemon::stats::CycleStats;
+use crate::daemon::timing::CycleStats;
 use crate::record::{Mode, RecordingStatus};
 
 /// A client request: one JSON object a line, `cmd` naming it.

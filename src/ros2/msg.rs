@@ -69,7 +69,7 @@ pub struct Header {
 
 /// sensor_msgs/JointState.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-pub struct JointState {
+pub struct JointStateMsg {
     /// Stamp.
     pub header: Header,
     /// Joint names.

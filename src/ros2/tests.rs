@@ -260,7 +260,7 @@ fn status(state: State, fault: Option<&str>, jitter_us: [f64; 3]) -> Status {
         payload_n: 0.0,
         payload_com: [0.0; 3],
         link: Default::default(),
-        cycle: crate::daemon::stats::CycleStats {
+        cycle: crate::daemon::timing::CycleStats {
             cycles: 10,
             jitter_us,
             ..Default::default()

@@ -16,7 +16,7 @@ use std::time::Duration;
 
 use super::servo::{self, ServoConfig, ServoSim, SharedServo};
 use super::{SimNoise, TrueRobot};
-use crate::can::protocol::Frame;
+use crate::can::protocol::CanFrame;
 use crate::can::{VirtualBus, VirtualConfig, VirtualEndpoint};
 use crate::daemon::config::{Settings, SimConfig};
 use crate::daemon::core::Core;
@@ -159,9 +159,9 @@ pub struct Lockstep {
     pub servo: ServoSim,
     now: f64,
     next_tick: f64,
-    to_servo: VecDeque<(f64, Frame)>,
-    to_host: VecDeque<(f64, Frame)>,
-    out: Vec<Frame>,
+    to_servo: VecDeque<(f64, CanFrame)>,
+    to_host: VecDeque<(f64, CanFrame)>,
+    out: Vec<CanFrame>,
 }
 
 impl Lockstep {
@@ -198,7 +198,7 @@ impl Lockstep {
     }
 
     /// Delivers `frame` to the daemon now, as a rogue node on the bus would.
-    pub fn inject(&mut self, frame: Frame) {
+    pub fn inject(&mut self, frame: CanFrame) {
         self.to_host.push_back((self.now, frame));
     }
 

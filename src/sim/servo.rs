@@ -22,8 +22,8 @@ use rand_pcg::Pcg64;
 use super::TrueRobot;
 use crate::can::bus::{BusError, BusEvent, CanBus};
 use crate::can::protocol::{
-    self, Command, ErrorCode, Fault, Feedback, Frame, Message, Request, ServoState, angle_counts,
-    current_counts, mode, status,
+    self, AxisCommand, CanFrame, ErrorCode, FaultCode, Feedback, Message, Request, ServoState,
+    angle_counts, current_counts, mode, status,
 };
 use crate::model::{ExternalLoad, Frame as Pose};
 
@@ -95,7 +95,7 @@ pub struct ServoSim {
     /// Fault injection.
     pub injected: Injected,
     state: ServoState,
-    fault: Fault,
+    fault: FaultCode,
     stopping: bool,
     now: f64,
     motor: [f64; 6],
@@ -104,7 +104,7 @@ pub struct ServoSim {
     dir: [f64; 6],
     target: [f64; 6],
     load_n: f64,
-    pending: [Option<Command>; 6],
+    pending: [Option<AxisCommand>; 6],
     applied_cycle: u16,
     last_command_s: f64,
     watchdog_s: f64,
@@ -129,7 +129,7 @@ impl ServoSim {
             cfg,
             injected: Injected::default(),
             state: ServoState::Stopped,
-            fault: Fault::None,
+            fault: FaultCode::None,
             stopping: false,
             now: 0.0,
             motor: q0,
@@ -152,7 +152,7 @@ impl ServoSim {
         self.state
     }
     /// Current fault.
-    pub fn fault(&self) -> Fault {
+    pub fn fault(&self) -> FaultCode {
         self.fault
     }
     /// True motor angles, rad.
@@ -196,11 +196,11 @@ impl ServoSim {
 
     fn enter_fault(
         &mut self,
-        fault: Fault,
+        fault: FaultCode,
         code: ErrorCode,
         axis: u8,
         detail: i32,
-        out: &mut Vec<Frame>,
+        out: &mut Vec<CanFrame>,
     ) {
         self.state = ServoState::Fault;
         self.fault = fault;
@@ -211,13 +211,13 @@ impl ServoSim {
         self.push_state(out);
     }
 
-    fn push(&self, m: Message, out: &mut Vec<Frame>) {
+    fn push(&self, m: Message, out: &mut Vec<CanFrame>) {
         if let Ok(f) = protocol::encode(&m) {
             out.push(f);
         }
     }
 
-    fn push_state(&self, out: &mut Vec<Frame>) {
+    fn push_state(&self, out: &mut Vec<CanFrame>) {
         self.push(
             Message::State {
                 state: self.state,
@@ -229,7 +229,7 @@ impl ServoSim {
     }
 
     /// Advances the plant to `now` (s) and runs the watchdog and heartbeat.
-    pub fn tick(&mut self, now: f64, out: &mut Vec<Frame>) {
+    pub fn tick(&mut self, now: f64, out: &mut Vec<CanFrame>) {
         if now <= self.now {
             return;
         }
@@ -274,14 +274,14 @@ impl ServoSim {
                 (0..6).find(|&j| self.motor[j] < lim.lower[j] || self.motor[j] > lim.upper[j])
         {
             let detail = angle_counts(self.motor[j]).unwrap_or(0);
-            self.enter_fault(Fault::Limit, ErrorCode::Limit, j as u8 + 1, detail, out);
+            self.enter_fault(FaultCode::Limit, ErrorCode::Limit, j as u8 + 1, detail, out);
         }
         if self.state == ServoState::Control
             && !self.stopping
             && now - self.last_command_s > self.watchdog_s
         {
             let ms = ((now - self.last_command_s) * 1e3) as i32;
-            self.enter_fault(Fault::Watchdog, ErrorCode::Watchdog, 0, ms, out);
+            self.enter_fault(FaultCode::Watchdog, ErrorCode::Watchdog, 0, ms, out);
         }
         if now - self.last_heartbeat_s >= self.cfg.heartbeat_s {
             self.last_heartbeat_s = now;
@@ -290,7 +290,7 @@ impl ServoSim {
     }
 
     /// Handles one received frame at time `now` (s); frames to send go to `out`.
-    pub fn handle(&mut self, now: f64, frame: &Frame, out: &mut Vec<Frame>) {
+    pub fn handle(&mut self, now: f64, frame: &CanFrame, out: &mut Vec<CanFrame>) {
         self.tick(now, out);
         let Ok(msg) = protocol::decode(frame) else {
             return;
@@ -311,7 +311,7 @@ impl ServoSim {
         }
     }
 
-    fn request(&mut self, r: Request, out: &mut Vec<Frame>) {
+    fn request(&mut self, r: Request, out: &mut Vec<CanFrame>) {
         use ServoState::{BrakeRelease, Control, Stopped};
         let ok = match (r, self.state) {
             (Request::ReleaseBrakes, Stopped) => {
@@ -338,19 +338,19 @@ impl ServoSim {
             }
             (Request::ResetFault, ServoState::Fault) => {
                 self.state = Stopped;
-                self.fault = Fault::None;
+                self.fault = FaultCode::None;
                 true
             }
             _ => false,
         };
         if ok {
-            if self.fault == Fault::Rejected {
-                self.fault = Fault::None;
+            if self.fault == FaultCode::Rejected {
+                self.fault = FaultCode::None;
             }
             self.push_state(out);
         } else {
             let prev = self.fault;
-            self.fault = Fault::Rejected;
+            self.fault = FaultCode::Rejected;
             self.push(
                 Message::Error {
                     code: ErrorCode::Rejected,
@@ -360,13 +360,13 @@ impl ServoSim {
                 out,
             );
             self.push_state(out);
-            if prev != Fault::None {
+            if prev != FaultCode::None {
                 self.fault = prev;
             }
         }
     }
 
-    fn command(&mut self, c: Command, out: &mut Vec<Frame>) {
+    fn command(&mut self, c: AxisCommand, out: &mut Vec<CanFrame>) {
         if self.state != ServoState::Control || self.stopping {
             return;
         }
@@ -377,7 +377,7 @@ impl ServoSim {
             .iter()
             .all(|p| p.is_some_and(|p| p.cycle == cycle))
         {
-            let cmds: [Command; 6] = std::array::from_fn(|j| self.pending[j].unwrap_or(c));
+            let cmds: [AxisCommand; 6] = std::array::from_fn(|j| self.pending[j].unwrap_or(c));
             self.pending = [None; 6];
             self.last_command_s = self.now;
             self.applied_cycle = (self.applied_cycle & 0xFF00) | cycle as u16;
@@ -407,7 +407,7 @@ impl ServoSim {
         }
     }
 
-    fn feedback(&mut self, cycle: u16, out: &mut Vec<Frame>) {
+    fn feedback(&mut self, cycle: u16, out: &mut Vec<CanFrame>) {
         // a partial command set of an earlier cycle is discarded
         self.pending = [None; 6];
         self.applied_cycle = (cycle & 0xFF00) | (self.applied_cycle & 0xFF);
@@ -420,10 +420,10 @@ impl ServoSim {
         };
         if self.state == ServoState::Fault {
             st |= status::FAULT;
-            if self.fault == Fault::Watchdog {
+            if self.fault == FaultCode::Watchdog {
                 st |= status::WATCHDOG;
             }
-            if self.fault == Fault::Limit {
+            if self.fault == FaultCode::Limit {
                 st |= status::LIMIT;
             }
         }
@@ -473,7 +473,7 @@ pub async fn run<B: CanBus>(
     sim: SharedServo,
     tick: Duration,
     mut stop: tokio::sync::watch::Receiver<bool>,
-    mut log: impl FnMut(f64, &Frame) + Send,
+    mut log: impl FnMut(f64, &CanFrame) + Send,
 ) -> Result<(), BusError> {
     let t0 = tokio::time::Instant::now();
     let mut out = Vec::with_capacity(16);

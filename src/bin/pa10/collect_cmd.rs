@@ -66,7 +66,7 @@ pub fn sample(api: &mut dyn Api) -> Result<([f64; 6], [f64; 6])> {
 pub enum CollectCmd {
     /// Drive the daemon through a pose list (`config_id,load_n,q1..q6`, link-side rad) and
     /// record resolver angles and currents per pose (`config_id,load_n,q1..q6,i1..i6`).
-    Run(RunArgs),
+    Run(CollectRunArgs),
     /// Cut robot samples from a recording (`pa10 record`): the resolver and current means of
     /// every still phase whose setpoint is a pose of the list.
     FromRecording(FromRecordingArgs),
@@ -77,7 +77,7 @@ pub enum CollectCmd {
 
 /// Arguments of `pa10 collect run`.
 #[derive(Debug, Args)]
-pub struct RunArgs {
+pub struct CollectRunArgs {
     #[command(flatten)]
     conn: Conn,
     /// The pose list.
@@ -198,7 +198,7 @@ pub fn run(c: &CollectCmd) -> Result<()> {
     }
 }
 
-fn collect_run(a: &RunArgs) -> Result<()> {
+fn collect_run(a: &CollectRunArgs) -> Result<()> {
     if a.samples == 0 || a.samples > 1000 {
         bail!("--samples must be 1…1000, got {}", a.samples);
     }

@@ -16,7 +16,7 @@ pub struct SimArgs {
     #[command(subcommand)]
     cmd: Option<SimCmd>,
     #[command(flatten)]
-    run: RunArgs,
+    run: SimRunArgs,
 }
 
 /// `pa10 sim` subcommands.
@@ -37,7 +37,7 @@ pub enum SimCmd {
 
 /// Running the simulated controller.
 #[derive(Debug, Args)]
-pub struct RunArgs {
+pub struct SimRunArgs {
     /// SocketCAN interface to serve (e.g. `vcan0`, `can0`).
     #[arg(long, value_name = "IFACE")]
     can: Option<String>,
@@ -120,7 +120,7 @@ fn open_can(iface: &str) -> Result<pa10::can::VirtualEndpoint> {
     anyhow::bail!("{iface}: SocketCAN needs Linux")
 }
 
-fn run_sim(a: &RunArgs) -> Result<()> {
+fn run_sim(a: &SimRunArgs) -> Result<()> {
     use pa10::sim::servo::{self, ServoConfig, ServoSim};
     let Some(iface) = a.can.as_deref() else {
         anyhow::bail!("`pa10 sim` needs --can IFACE (or a subcommand: measure, replay)");

@@ -28,9 +28,9 @@ use super::control::{
     Activity, CommandError, Controller, Fault, JointState, LoopParams, check_payload,
 };
 use super::link::{Link, LinkConfig, LinkError, LinkEvent};
-use super::stats::{CycleStats, Histogram};
+use super::timing::{CycleStats, Histogram};
 use crate::can::bus::{BusError, BusEvent};
-use crate::can::protocol::{Frame, Request, ServoState};
+use crate::can::protocol::{CanFrame, Request, ServoState};
 use crate::model::Model;
 use crate::record::{CycleSample, Event, Record, RecordConfig, RecordTap, RecorderStats};
 
@@ -193,7 +193,7 @@ impl Core {
     }
 
     /// Takes one frame received at `now` (s).
-    pub fn handle_frame(&mut self, frame: &Frame, now: f64) {
+    pub fn handle_frame(&mut self, frame: &CanFrame, now: f64) {
         self.now_s = self.now_s.max(now);
         let ev = self.link.handle(frame, now);
         self.on(ev, now);
@@ -249,7 +249,7 @@ impl Core {
     }
 
     /// The next frame to send.
-    pub fn poll_transmit(&mut self) -> Option<Frame> {
+    pub fn poll_transmit(&mut self) -> Option<CanFrame> {
         self.link.poll_transmit()
     }
 

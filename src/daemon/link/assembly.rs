@@ -2,7 +2,7 @@
 //! [`JointState`] in SI units and counts everything else ([`LinkCounters`]);
 //! [`command_frames`] encodes the six COMMAND frames of a cycle's speeds. No allocation.
 
-use crate::can::protocol::{self, Command, Frame, Message, status};
+use crate::can::protocol::{self, AxisCommand, CanFrame, Message, status};
 use crate::daemon::vocab::JointState;
 
 /// Counters of what the link saw, for `status`.
@@ -61,7 +61,7 @@ impl Default for CycleAssembler {
 
 impl CycleAssembler {
     /// Starts cycle `cycle` sampled at `now_s`; returns the SYNC frame to send.
-    pub fn begin(&mut self, cycle: u16, now_s: f64) -> Frame {
+    pub fn begin(&mut self, cycle: u16, now_s: f64) -> CanFrame {
         self.cycle = cycle as u8;
         self.seen = 0;
         self.state = JointState {
@@ -113,16 +113,16 @@ impl CycleAssembler {
 }
 
 /// A placeholder for encodings that cannot fail (their inputs are in range by construction).
-const EMPTY: Frame = match Frame::new_const(0, 0) {
+const EMPTY: CanFrame = match CanFrame::new_const(0, 0) {
     Some(f) => f,
     None => panic!(),
 };
 
 /// The six COMMAND frames answering cycle `cycle`: speed mode, servo on, brake off;
 /// speeds (rad/s) are clamped to the field's range.
-pub fn command_frames(cycle: u16, speeds: &[f64; 6]) -> [Frame; 6] {
+pub fn command_frames(cycle: u16, speeds: &[f64; 6]) -> [CanFrame; 6] {
     std::array::from_fn(|j| {
-        let c = Command::speed_saturating(j as u8 + 1, cycle as u8, speeds[j]);
+        let c = AxisCommand::speed_saturating(j as u8 + 1, cycle as u8, speeds[j]);
         protocol::encode(&Message::Command(c)).unwrap_or(EMPTY)
     })
 }

@@ -18,7 +18,7 @@ use super::vocab::JointState;
 pub use assembly::{CycleAssembler, LinkCounters, command_frames};
 
 mod assembly;
-use crate::can::protocol::{self, ErrorCode, Frame, Message, Request, ServoState};
+use crate::can::protocol::{self, CanFrame, ErrorCode, Message, Request, ServoState};
 
 /// Timing of the link, s.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -187,10 +187,10 @@ pub struct Link {
     next_sync: f64,
     pending: Option<Pending>,
     servo: Option<ServoState>,
-    servo_fault: protocol::Fault,
+    servo_fault: protocol::FaultCode,
     last_error: Option<ControllerError>,
     timing: Option<CycleTiming>,
-    tx: VecDeque<Frame>,
+    tx: VecDeque<CanFrame>,
 }
 
 /// Frames the link may have queued at once: a SYNC, six COMMANDs and a CONTROL, twice over.
@@ -208,7 +208,7 @@ impl Link {
             next_sync: 0.0,
             pending: None,
             servo: None,
-            servo_fault: protocol::Fault::None,
+            servo_fault: protocol::FaultCode::None,
             last_error: None,
             timing: None,
             tx: VecDeque::with_capacity(TX_CAPACITY),
@@ -285,8 +285,8 @@ impl Link {
             )
         });
         match (self.servo_fault, e) {
-            (protocol::Fault::None, None) => None,
-            (protocol::Fault::None, Some(e)) => Some(e),
+            (protocol::FaultCode::None, None) => None,
+            (protocol::FaultCode::None, Some(e)) => Some(e),
             (f, None) => Some(format!("STATE fault {f:?}")),
             (f, Some(e)) => Some(format!("STATE fault {f:?}, {e}")),
         }
@@ -333,7 +333,7 @@ impl Link {
     }
 
     /// The next frame to send.
-    pub fn poll_transmit(&mut self) -> Option<Frame> {
+    pub fn poll_transmit(&mut self) -> Option<CanFrame> {
         self.tx.pop_front()
     }
 
@@ -357,7 +357,7 @@ impl Link {
     }
 
     /// Takes one received frame at `now` (s).
-    pub fn handle(&mut self, frame: &Frame, now: f64) -> Option<LinkEvent> {
+    pub fn handle(&mut self, frame: &CanFrame, now: f64) -> Option<LinkEvent> {
         let msg = match protocol::decode(frame) {
             Ok(m) => m,
             Err(_) => {

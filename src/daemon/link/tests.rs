@@ -1,12 +1,12 @@
 //! The link's session and cycle assembly, driven frame by frame in simulated time.
 
 use super::*;
-use crate::can::protocol::{Fault, Feedback, mode, status};
+use crate::can::protocol::{FaultCode, Feedback, mode, status};
 use rand::{RngExt, SeedableRng};
 
 const PERIOD: f64 = 0.002;
 
-fn fb(axis: u8, cycle: u8, angle: i32) -> Frame {
+fn fb(axis: u8, cycle: u8, angle: i32) -> CanFrame {
     protocol::encode(&Message::Feedback(Feedback {
         axis,
         angle,
@@ -17,10 +17,10 @@ fn fb(axis: u8, cycle: u8, angle: i32) -> Frame {
     .unwrap()
 }
 
-fn state(s: ServoState) -> Frame {
+fn state(s: ServoState) -> CanFrame {
     protocol::encode(&Message::State {
         state: s,
-        fault: Fault::None,
+        fault: FaultCode::None,
         cycle: 0,
     })
     .unwrap()
@@ -254,7 +254,7 @@ fn a_storm_of_malformed_frames_only_counts() {
         let n = rng.random_range(0..=8usize);
         let data: Vec<u8> = (0..n).map(|_| rng.random()).collect();
         // whatever it decodes to, it is an event or nothing, never a panic
-        let _ = l.handle(&Frame::new(id, &data).unwrap(), t);
+        let _ = l.handle(&CanFrame::new(id, &data).unwrap(), t);
     }
     assert!(l.counters().malformed > 50_000, "{:?}", l.counters());
 }
