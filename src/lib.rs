@@ -24,7 +24,8 @@
 //!   translation to and from the daemon's requests (pure; the DDS side is the binary's).
 //!
 //! **Features.** `default = ["cli"]`: the command-line tools over the `daemon` (which needs
-//! `record`); `ros2` adds the bridge's DDS side. With `default-features = false` the crate is
+//! `record`) and its `live` view (the Foxglove WebSocket server); `ros2` adds the bridge's DDS
+//! side. A program that embeds the daemon's core takes `daemon` alone (no WebSocket stack). With `default-features = false` the crate is
 //! the science alone — [`model`], [`calib`], [`discover`], [`noise`], [`accuracy`], the
 //! simulator's truth and campaigns — and compiles none of the daemon's IO (62 crates instead
 //! of 172).

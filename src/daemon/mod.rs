@@ -7,13 +7,15 @@
 //! [`timing`] (the loop's timing histograms) and [`wire`] (the client protocol's request,
 //! reply and status types, and their JSON Schema).
 //! At the edges: [`runtime`] (the real-time control thread on a real bus), [`api`] (the
-//! client socket), [`config`] and [`realtime`] (scheduling and memory locking).
+//! client socket), `live` (the Foxglove WebSocket view; feature `live`), [`config`] and
+//! [`realtime`] (scheduling and memory locking).
 
 pub mod api;
 pub mod config;
 pub mod control;
 pub mod core;
 pub mod link;
+#[cfg(feature = "live")]
 pub mod live;
 pub mod plan;
 pub mod realtime;
