@@ -28,7 +28,7 @@ pub use serve::{
 mod client;
 mod serve;
 
-pub use crate::text::truncate;
+use crate::text::truncate;
 
 /// The longest error text an answer carries, bytes: a hostile request is never echoed whole.
 const MAX_ERROR_BYTES: usize = 300;
