@@ -128,6 +128,13 @@ fn bad_input_gets_a_precise_error_and_a_failing_exit() {
     let o = pa10(&["model", "check", "/nonexistent.yaml"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("/nonexistent.yaml"));
+    // the URDF's torque limits: six positive numbers, N·m
+    let o = pa10(&["urdf", "--effort", "1,2,3"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("six torques"));
+    let o = pa10(&["urdf", "--effort", "1,2,3,4,5,-1"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("joint 6 torque -1 N·m"));
 }
 
 #[test]

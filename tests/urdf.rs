@@ -1,6 +1,8 @@
 //! `pa10 urdf`: forward kinematics computed from the URDF's XML alone (parsed by roxmltree,
 //! composed here) equals `pa10 fk --model FILE` at random configurations, for the nominal
-//! model and a calibrated one (departures and Hayati β on every parameter).
+//! model and a calibrated one (departures and Hayati β on every parameter); and Pinocchio,
+//! reading the same file (`tests/pin/urdf_check.py`), computes the model's tool pose and the
+//! model's static gravity torques from its inertials.
 
 use nalgebra::{Isometry3, Rotation3, Translation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -118,7 +120,83 @@ fn check(model_file: &std::path::Path, tag: &str) {
         worst.0, worst.1
     );
     assert!(worst.0 < 1e-9 && worst.1 < 1e-9, "{worst:?}");
+    pinocchio_agrees(&out, model_file, tag);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Pinocchio on the URDF at `urdf`: its tool pose equals the model's FK and its generalized
+/// gravity equals the model's static torques (no load) at random configurations; its total
+/// mass is the model's bodies'. Skipped (said) without Pinocchio, a failure in CI
+/// (`PA10_REQUIRE_PIN=1`).
+fn pinocchio_agrees(urdf: &std::path::Path, model_file: &std::path::Path, tag: &str) {
+    use std::io::Write;
+    let required = std::env::var("PA10_REQUIRE_PIN").is_ok_and(|v| v == "1");
+    let have = std::process::Command::new("python3")
+        .args(["-c", "import pinocchio"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !have {
+        assert!(!required, "PA10_REQUIRE_PIN=1 but `import pinocchio` fails");
+        eprintln!("SKIPPED: the URDF's Pinocchio check (pip install pin); CI runs it");
+        return;
+    }
+    let model = pa10::model::Model::load(model_file).unwrap();
+    let lim = model.limits();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(12);
+    let qs: Vec<[f64; 6]> = (0..20)
+        .map(|_| std::array::from_fn(|j| rng.random_range(lim.lower[j]..lim.upper[j])))
+        .collect();
+    let g = model.gravity();
+    let req = serde_json::json!({"q": qs, "gravity": [g.x, g.y, g.z]}).to_string();
+    let mut child = std::process::Command::new("python3")
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/tests/pin/urdf_check.py"
+        ))
+        .arg(urdf)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(req.as_bytes())
+        .unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["nq"], 6);
+    let mass: f64 = model.data().bodies.iter().map(|b| b.mass).sum();
+    assert!((v["mass_kg"].as_f64().unwrap() - mass).abs() < 1e-9, "{v}");
+    let (mut dp, mut dr, mut dt, mut peak) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+    for (k, q) in qs.iter().enumerate() {
+        let t: Vec<f64> = serde_json::from_value(v["tool"][k].clone()).unwrap();
+        let fk = model.fk(q);
+        dp = dp.max((fk.translation.vector - Vector3::new(t[0], t[1], t[2])).norm());
+        let pq = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(t[3], t[4], t[5], t[6]));
+        dr = dr.max(UnitQuaternion::from_rotation_matrix(&fk.rotation).angle_to(&pq));
+        let tau: Vec<f64> = serde_json::from_value(v["gravity_torque"][k].clone()).unwrap();
+        let ours = model.static_torques(q, &pa10::model::ExternalLoad::NONE);
+        for j in 0..6 {
+            dt = dt.max((tau[j] - ours[j]).abs());
+            peak = peak.max(ours[j].abs());
+        }
+    }
+    eprintln!(
+        "urdf {tag} vs Pinocchio: tool {dp:.2e} m, {dr:.2e} rad; gravity torques {dt:.2e} N·m (largest {peak:.1} N·m)"
+    );
+    assert!(dp < 1e-9 && dr < 1e-9, "tool: {dp:e} m, {dr:e} rad");
+    assert!(
+        peak > 10.0,
+        "the random poses load the shoulder: {peak} N·m"
+    );
+    assert!(
+        dt < 1e-9 * peak.max(1.0),
+        "gravity torques differ by {dt:e} N·m"
+    );
 }
 
 #[test]

@@ -221,12 +221,42 @@ pub struct UrdfArgs {
     /// The robot's name in the URDF.
     #[arg(long, default_value = "pa10")]
     name: String,
+    /// The drives' torque limits J1..J6, N·m (the URDF's `effort`). The PA10's are not
+    /// published (docs/references.md); the default is the simulated drives' (current limit ×
+    /// torque constant: 450,900,450,150,150,60).
+    #[arg(
+        long,
+        value_name = "N1,..,N6",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    effort: Option<Vec<f64>>,
 }
 
 /// `pa10 urdf`: the model's kinematics as a URDF.
 pub fn urdf(a: &UrdfArgs) -> Result<()> {
     let m = a.model.load()?;
-    let text = pa10::model::urdf::urdf(&m, &a.name);
+    let effort: [f64; 6] = match &a.effort {
+        Some(e) => {
+            let e: [f64; 6] = e
+                .as_slice()
+                .try_into()
+                .map_err(|_| anyhow::anyhow!("--effort takes six torques, N·m"))?;
+            if let Some(j) = e.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
+                anyhow::bail!(
+                    "--effort: joint {} torque {} N·m is not a positive number",
+                    j + 1,
+                    e[j]
+                );
+            }
+            e
+        }
+        None => {
+            let d = pa10::sim::servo::ServoConfig::default();
+            std::array::from_fn(|j| d.current_limit_a[j] * d.torque_constants[j])
+        }
+    };
+    let text = pa10::model::urdf::urdf(&m, &a.name, &effort);
     match &a.out {
         Some(p) => {
             std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
