@@ -640,6 +640,10 @@ mod tests {
     fn every_error_names_its_key() {
         let y = sim_yaml();
         assert!(
+            err(&y.replace("  port: 8765", "  port: 8765\n  rate_hz: 0"))
+                .contains("invalid `live.rate_hz`: must be within 1…500 Hz, got 0")
+        );
+        assert!(
             err(&y.replace("rate_hz: 500", "rate_hz: 700"))
                 .contains("invalid `control.rate_hz`: 700 Hz needs 118.")
         );
