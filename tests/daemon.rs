@@ -582,7 +582,14 @@ fn spawn_pa10d(dir: &Path, edit: impl FnOnce(String) -> String) -> (Reaped, Path
     let text = std::fs::read_to_string(&cfg)
         .unwrap()
         .replace("following_error: 0.01", "following_error: 0.05")
-        .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100");
+        .replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 100")
+        // the controller's command watchdog at the protocol's longest: a fresh CI machine's
+        // disk writeback once held the daemon 113 ms, past the shipped 50 ms
+        .replace("controller_watchdog_ms: 50", "controller_watchdog_ms: 255");
+    assert!(
+        text.contains("controller_watchdog_ms: 255"),
+        "sim.yaml changed its watchdog line"
+    );
     std::fs::write(&cfg, edit(text)).unwrap();
     let child = Reaped(
         std::process::Command::new(env!("CARGO_BIN_EXE_pa10d"))
