@@ -128,3 +128,17 @@ pub fn spring_joints(d: &pa10::discover::Discovery) -> Vec<usize> {
     j.sort_unstable();
     j
 }
+
+/// Whether Pinocchio is importable; panics when it is required (CI) and missing.
+pub fn pinocchio() -> bool {
+    let required = std::env::var("PA10_REQUIRE_PIN").is_ok_and(|v| v == "1");
+    let ok = std::process::Command::new("python3")
+        .args(["-c", "import pinocchio"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        assert!(!required, "PA10_REQUIRE_PIN=1 but `import pinocchio` fails");
+        eprintln!("SKIPPED: Pinocchio not installed (pip install pin); CI runs these checks");
+    }
+    ok
+}

@@ -20,20 +20,6 @@ fn script() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/pin/campaign.py")
 }
 
-/// Whether Pinocchio is importable; panics when it is required (CI) and missing.
-fn pinocchio() -> bool {
-    let required = std::env::var("PA10_REQUIRE_PIN").is_ok_and(|v| v == "1");
-    let ok = Command::new("python3")
-        .args(["-c", "import pinocchio"])
-        .status()
-        .is_ok_and(|s| s.success());
-    if !ok {
-        assert!(!required, "PA10_REQUIRE_PIN=1 but `import pinocchio` fails");
-        eprintln!("SKIPPED: Pinocchio not installed (pip install pin); CI runs these checks");
-    }
-    ok
-}
-
 /// A generated campaign: the training and held-out sets, and the generator's truth.
 struct Campaign {
     cal: Dataset,
@@ -93,7 +79,7 @@ fn labels(d: &Discovery) -> Vec<&str> {
 #[test]
 #[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn hidden_effects_are_named_on_pinocchio_campaigns() {
-    if !pinocchio() {
+    if !crate::common::pinocchio() {
         return;
     }
     let _cpu = crate::common::busy_lock();
@@ -129,7 +115,7 @@ fn hidden_effects_are_named_on_pinocchio_campaigns() {
 #[test]
 #[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn two_hidden_effects_at_once_on_the_papers_design() {
-    if !pinocchio() {
+    if !crate::common::pinocchio() {
         return;
     }
     let _cpu = crate::common::busy_lock();
@@ -170,7 +156,7 @@ fn two_hidden_effects_at_once_on_the_papers_design() {
 #[test]
 #[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn from_the_nominal_model_the_springs_are_found_together() {
-    if !pinocchio() {
+    if !crate::common::pinocchio() {
         return;
     }
     let _cpu = crate::common::busy_lock();
@@ -201,7 +187,7 @@ fn from_the_nominal_model_the_springs_are_found_together() {
 #[test]
 #[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn from_the_nominal_model_on_two_loads_and_on_one_repeat() {
-    if !pinocchio() {
+    if !crate::common::pinocchio() {
         return;
     }
     let _cpu = crate::common::busy_lock();
@@ -240,7 +226,7 @@ fn from_the_nominal_model_on_two_loads_and_on_one_repeat() {
 #[test]
 #[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn from_the_nominal_model_a_spring_is_completed_beyond_the_training_loads() {
-    if !pinocchio() {
+    if !crate::common::pinocchio() {
         return;
     }
     let _cpu = crate::common::busy_lock();
@@ -293,7 +279,7 @@ fn from_the_nominal_model_a_spring_is_completed_beyond_the_training_loads() {
 #[test]
 #[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn a_revealable_j3_transmission_error_is_named_on_j3() {
-    if !pinocchio() {
+    if !crate::common::pinocchio() {
         return;
     }
     let _cpu = crate::common::busy_lock();
@@ -335,7 +321,7 @@ fn a_revealable_j3_transmission_error_is_named_on_j3() {
 #[test]
 #[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn calibration_survives_trial_steps_outside_the_valid_range() {
-    if !pinocchio() {
+    if !crate::common::pinocchio() {
         return;
     }
     let _cpu = crate::common::busy_lock();
@@ -359,7 +345,7 @@ fn calibration_survives_trial_steps_outside_the_valid_range() {
 #[test]
 #[ignore = "statistical, on an independent generator: cargo test -- --ignored (CI runs it)"]
 fn a_calibration_that_cannot_explain_its_data_says_so_and_discovery_names_why() {
-    if !pinocchio() {
+    if !crate::common::pinocchio() {
         return;
     }
     let _cpu = crate::common::busy_lock();

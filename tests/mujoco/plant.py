@@ -225,7 +225,8 @@ class Plant:
         d.qpos[self.sq] = delta
         mujoco.mj_forward(self.model, d)
         # the speed loop's integrator holds the spring torque (the motor torque at rest)
-        self.integral = d.qfrc_bias[self.mv] / np.array(KI)
+        self.tau_m = d.qfrc_bias[self.mv].copy()
+        self.integral = self.tau_m / np.array(KI)
         self.speed = np.zeros(6)
         return self.state()
 
@@ -258,7 +259,7 @@ class Plant:
             "t": d.time,
             "motor": list(theta),
             "link": list(theta + delta),
-            "motor_torque": list(self.tau_m if np.any(self.tau_m) else d.qfrc_bias[self.mv]),
+            "motor_torque": list(self.tau_m),
             "spring_torque": list(-self.spring(delta)),
             "tool": list(pos) + list(q),
         }
