@@ -7,6 +7,10 @@
 
 pub mod experiment;
 #[cfg(feature = "daemon")]
+pub mod mujoco;
+#[cfg(feature = "daemon")]
+pub mod plant;
+#[cfg(feature = "daemon")]
 pub mod rig;
 #[cfg(feature = "daemon")]
 pub mod servo;

@@ -3,12 +3,12 @@
 //! [`CanBus`].
 //!
 //! [`ServoSim`] takes frames and the current time and returns frames; it never reads a
-//! clock. Physics, per axis: a velocity loop (first-order lag `tau_s` towards the commanded
-//! speed, speed-limited), the motor angle integrates the speed, the link sits at the motor
-//! angle minus the true spring deflection under the true gravity and hung load
-//! ([`TrueRobot`]); the resolver reads the motor angle with its repeatable error, noise and
-//! quantisation; motor currents are the true joint torques over the torque constants, with
-//! noise. The command watchdog, brakes and faults behave as the protocol's state machine
+//! clock. The physics is a [`Plant`]: by default the in-process [`ModelPlant`] (a first-order
+//! speed loop, the link at the motor angle minus the true spring deflection under the true
+//! gravity and hung load of the [`TrueRobot`]), or any other, e.g. MuJoCo's
+//! ([`super::mujoco::MujocoPlant`]). The controller's own parts stay here: the resolver reads
+//! the plant's motor angle with the truth's repeatable error, noise and quantisation; motor
+//! currents are the plant's motor torques over the torque constants, with noise. The command watchdog, brakes and faults behave as the protocol's state machine
 //! says. [`ServoSim::observe_tool`] is the ground truth — the instrument — and is never
 //! reachable over the bus.
 
@@ -20,12 +20,13 @@ use rand_distr::{Distribution, StandardNormal};
 use rand_pcg::Pcg64;
 
 use super::TrueRobot;
+use super::plant::{Drive, ModelPlant, Plant};
 use crate::can::bus::{BusError, BusEvent, CanBus};
 use crate::can::protocol::{
     self, AxisCommand, CanFrame, ErrorCode, FaultCode, Feedback, Message, Request, ServoState,
     angle_counts, current_counts, mode, status,
 };
-use crate::model::{ExternalLoad, Frame as Pose};
+use crate::model::Frame as Pose;
 
 /// Simulated motor current → link torque constants, N·m/A (the real ones are not published).
 pub const SIM_TORQUE_CONSTANTS: [f64; 6] = [15.0, 30.0, 15.0, 5.0, 5.0, 2.0];
@@ -98,12 +99,8 @@ pub struct ServoSim {
     fault: FaultCode,
     stopping: bool,
     now: f64,
-    motor: [f64; 6],
-    speed: [f64; 6],
-    /// Direction each motor last moved in (−1, 0, +1): the side of any backlash.
-    dir: [f64; 6],
+    plant: Box<dyn Plant>,
     target: [f64; 6],
-    load_n: f64,
     pending: [Option<AxisCommand>; 6],
     applied_cycle: u16,
     last_command_s: f64,
@@ -113,16 +110,29 @@ pub struct ServoSim {
     rng: Pcg64,
 }
 
-/// Motor speed above which a motion counts as an approach direction, rad/s.
-const BACKLASH_SPEED: f64 = 2e-3;
+/// Motor speed below which a controlled stop is complete, rad/s.
+const STOPPED_SPEED: f64 = 1e-6;
 
 fn gauss(rng: &mut Pcg64) -> f64 {
     StandardNormal.sample(rng)
 }
 
 impl ServoSim {
-    /// A controller for `truth` whose motors start at angles `q0` (rad), at time 0, STOPPED.
+    /// A controller for `truth` whose motors start at angles `q0` (rad), at time 0, STOPPED;
+    /// the physics the in-process [`ModelPlant`] of the truth model.
     pub fn new(truth: TrueRobot, cfg: ServoConfig, q0: [f64; 6], seed: u64) -> Self {
+        let plant = ModelPlant::new(truth.model.clone(), cfg.tau_s, q0);
+        Self::with_plant(truth, cfg, Box::new(plant), seed)
+    }
+
+    /// A controller for `truth`'s sensors and instrument driving `plant` (its motors where the
+    /// plant has them), at time 0, STOPPED.
+    pub fn with_plant(
+        truth: TrueRobot,
+        cfg: ServoConfig,
+        plant: Box<dyn Plant>,
+        seed: u64,
+    ) -> Self {
         let watchdog_s = cfg.watchdog_s;
         Self {
             truth,
@@ -132,11 +142,8 @@ impl ServoSim {
             fault: FaultCode::None,
             stopping: false,
             now: 0.0,
-            motor: q0,
-            speed: [0.0; 6],
-            dir: [0.0; 6],
+            plant,
             target: [0.0; 6],
-            load_n: 0.0,
             pending: [None; 6],
             applied_cycle: 0,
             last_command_s: 0.0,
@@ -157,41 +164,36 @@ impl ServoSim {
     }
     /// True motor angles, rad.
     pub fn motor_angles(&self) -> [f64; 6] {
-        self.motor
+        self.plant.motor_angles()
     }
     /// Hangs `newtons` at the tool (the weight rack).
     pub fn set_load(&mut self, newtons: f64) {
-        self.load_n = newtons.max(0.0);
+        self.plant.set_load(newtons.max(0.0));
+    }
+    /// The physics.
+    pub fn plant(&self) -> &dyn Plant {
+        self.plant.as_ref()
     }
     /// The hidden truth.
     pub fn truth(&self) -> &TrueRobot {
         &self.truth
     }
 
-    /// True link angles and joint torques at the current motor angles and load.
+    /// True link angles and the torques the motor currents carry (rad, N·m), from the plant.
     pub fn link_state(&self) -> ([f64; 6], [f64; 6]) {
-        let m = &self.truth.model;
-        let load = ExternalLoad::hung(self.load_n, &m.gravity());
-        m.link_from_motor(
-            &self.motor,
-            crate::model::Torques::Gravity(&load),
-            &self.dir,
-        )
-        .map(|c| (c.q_link, c.tau))
-        .unwrap_or((self.motor, [0.0; 6]))
+        self.plant.link_state()
     }
 
     /// **Ground truth** (the instrument): the tool's pose in the instrument frame, with the
     /// instrument's noise. Never reachable over the bus.
     pub fn observe_tool(&mut self) -> Pose {
-        let (q, _) = self.link_state();
-        self.truth.observe(&q, &mut self.rng)
+        let pose = self.plant.tool_pose();
+        self.truth.observe_pose(&pose, &mut self.rng)
     }
 
     /// The exact tool pose in the robot base frame (for end-to-end checks).
     pub fn true_tool_pose(&self) -> Pose {
-        let (q, _) = self.link_state();
-        self.truth.model.fk(&q)
+        self.plant.tool_pose()
     }
 
     fn enter_fault(
@@ -204,7 +206,6 @@ impl ServoSim {
     ) {
         self.state = ServoState::Fault;
         self.fault = fault;
-        self.speed = [0.0; 6];
         self.target = [0.0; 6];
         self.stopping = false;
         self.push(Message::Error { code, axis, detail }, out);
@@ -234,46 +235,41 @@ impl ServoSim {
             return;
         }
         let servo = matches!(self.state, ServoState::BrakeRelease | ServoState::Control);
+        let drive = Drive {
+            speed: if self.stopping || !servo {
+                [0.0; 6]
+            } else {
+                self.target
+            },
+            engaged: servo,
+            stop_decel: self.stopping.then_some(self.cfg.stop_decel),
+            speed_limit: self.cfg.speed_limit,
+        };
         let mut t = self.now;
         while t < now {
             let dt = (now - t).min(1e-3);
-            for j in 0..6 {
-                if !servo {
-                    self.speed[j] = 0.0;
-                    continue;
-                }
-                let target = if self.stopping { 0.0 } else { self.target[j] };
-                let mut v =
-                    self.speed[j] + (target - self.speed[j]) * (1.0 - (-dt / self.cfg.tau_s).exp());
-                if self.stopping {
-                    // a controlled stop decelerates at most at stop_decel
-                    let dv = self.cfg.stop_decel * dt;
-                    v = v.clamp(self.speed[j] - dv, self.speed[j] + dv);
-                }
-                let lim = self.cfg.speed_limit[j];
-                self.speed[j] = v.clamp(-lim, lim);
-                self.motor[j] += self.speed[j] * dt;
-                // A deliberate motion (not the position loop's dither at rest) takes up the
-                // backlash on its side.
-                if self.speed[j].abs() > BACKLASH_SPEED {
-                    self.dir[j] = self.speed[j].signum();
-                }
-            }
+            self.plant.advance(dt, &drive);
             t += dt;
         }
         self.now = now;
-        if self.stopping && self.speed.iter().all(|v| v.abs() < 1e-6) {
+        if self.stopping
+            && self
+                .plant
+                .motor_speeds()
+                .iter()
+                .all(|v| v.abs() < STOPPED_SPEED)
+        {
             self.stopping = false;
             self.state = ServoState::Stopped;
             self.target = [0.0; 6];
             self.push_state(out);
         }
+        let motor = self.plant.motor_angles();
         let lim = self.truth.model.limits();
         if servo
-            && let Some(j) =
-                (0..6).find(|&j| self.motor[j] < lim.lower[j] || self.motor[j] > lim.upper[j])
+            && let Some(j) = (0..6).find(|&j| motor[j] < lim.lower[j] || motor[j] > lim.upper[j])
         {
-            let detail = angle_counts(self.motor[j]).unwrap_or(0);
+            let detail = angle_counts(motor[j]).unwrap_or(0);
             self.enter_fault(FaultCode::Limit, ErrorCode::Limit, j as u8 + 1, detail, out);
         }
         if self.state == ServoState::Control
@@ -332,7 +328,6 @@ impl ServoSim {
             (Request::Estop, _) => {
                 self.state = Stopped;
                 self.stopping = false;
-                self.speed = [0.0; 6];
                 self.target = [0.0; 6];
                 true
             }
@@ -411,7 +406,8 @@ impl ServoSim {
         // a partial command set of an earlier cycle is discarded
         self.pending = [None; 6];
         self.applied_cycle = (cycle & 0xFF00) | (self.applied_cycle & 0xFF);
-        let (_, tau) = self.link_state();
+        let (_, tau) = self.plant.link_state();
+        let motor = self.plant.motor_angles();
         let servo_on = matches!(self.state, ServoState::BrakeRelease | ServoState::Control);
         let mut st = if servo_on {
             status::SERVO_ON
@@ -435,7 +431,7 @@ impl ServoSim {
             if self.injected.mute_axis == Some(axis) {
                 continue;
             }
-            let reading = self.truth.resolver_reading(j, self.motor[j]);
+            let reading = self.truth.resolver_reading(j, motor[j]);
             let mut counts = angle_counts(reading).unwrap_or(0);
             counts = counts.saturating_add(
                 (self.cfg.resolver_noise_counts * gauss(&mut self.rng)).round() as i32,

@@ -13,16 +13,21 @@ the link angle is q_j = θ_j + δ_j and the link bodies (masses, centres, cylind
 with it. Gravity acts; a load hangs at the tool as a point mass. The servo controller's
 motor-side speed loop (PI on θ̇, torque-limited) runs at every physics step.
 
-Hidden departures (seeded, within the facts' uncertainty): link masses ±10 %, centres of mass
-±10 mm, stiffness ±15 %, springs on J1/J4/J6 that the daemon's model calls rigid.
+Hidden departures (seeded, within the facts' uncertainty): geometry within the seed paper's
+machining tolerances (a, d ±0.25 mm, α ±1 mrad, joint zeros ±0.5 mrad, Hayati β on the parallel
+J2-J3 ±1 mrad), link masses ±10 %, centres of mass ±10 mm, stiffness ±15 %, springs on
+J1/J4/J6 that the daemon's model calls rigid.
 
 Protocol (JSON lines on stdin, one JSON line answered on stdout per request):
-  {"op": "reset", "q": [6] rad, "load_kg": m, "friction": 0..1, "seed": n}
-      the arm at rest at link angles q (motor angles and springs in equilibrium)
-  {"op": "step", "dt": s, "speed": [6] rad/s}   the commanded motor speeds for dt seconds
+  {"op": "reset", "q": [6] rad, "load_kg": m, "friction": 0..1, "seed": n, "tool": [3] m}
+      the arm at rest at link angles q (motor angles and springs in equilibrium), the tool
+      point (and the load) at `tool` in the flange frame; answers the state and "dt"
+  {"op": "step", "dt": s, "speed": [6] rad/s, "brake": bool}
+      the commanded motor speeds for dt seconds (whole physics steps); with brake true the
+      motors are held where they are (the servo off) and the links hang on the springs
   {"op": "load", "kg": m}                          the load's mass from now on
   {"op": "quit"}
-Every answer: {"t": s, "motor": [6] rad, "link": [6] rad, "motor_torque": [6] N·m (link side:
+Every answer: {"t": s, "motor": [6] rad, "motor_speed": [6] rad/s, "link": [6] rad, "motor_torque": [6] N·m (link side:
 what the current measures), "spring_torque": [6] N·m (what the spring passes to the link,
 -(k·δ + k3·δ³) with δ = link − motor), "tool": [x, y, z, qw, qx, qy, qz] m}
 or {"error": "..."}.
@@ -58,9 +63,11 @@ ROTOR = [1.2, 1.2, 0.35, 0.1, 0.1, 0.02]
 VISCOUS = [8.0, 8.0, 4.0, 1.0, 1.0, 0.3]
 COULOMB = [13.5, 27.0, 13.5, 4.5, 4.5, 1.8]
 TORQUE_LIMIT = [450.0, 900.0, 450.0, 150.0, 150.0, 60.0]
-# the servo controller's speed loop, PI on the motor speed: τ = Kp·e + Ki·∫e
-KP = [300.0, 300.0, 120.0, 30.0, 30.0, 8.0]  # N·m·s/rad
-KI = [6000.0, 6000.0, 2400.0, 600.0, 600.0, 160.0]  # N·m/rad
+# the servo controller's speed loop, PI on the motor speed: τ = Kp·e + Ki·∫e. Tuned as a drive
+# is for its rated payload (10 kg): Kp ≈ 40 rad/s × the inertia the motor sees with that load
+# at full reach (J1/J2 ≈ 10, J3 ≈ 7.5, J4/J5 ≈ 2, J6 ≈ 0.2 kg·m²), the integral corner at 20 rad/s
+KP = [400.0, 400.0, 300.0, 80.0, 80.0, 8.0]  # N·m·s/rad
+KI = [8000.0, 8000.0, 6000.0, 1600.0, 1600.0, 160.0]  # N·m/rad
 SPRING_DAMPING = 0.002  # s: spring damping = this × k
 DT = 0.0005  # physics step, s
 
@@ -75,12 +82,23 @@ def rot_z(a):
     return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
 
 
-def dh_constant(j):
-    """Rotation and translation of Rz(off) Tz(d) Tx(a) Rx(α): joint j's frame → the next."""
+def rot_y(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+# the seed paper's machining tolerances: a, d (m), α, Hayati β, joint zero θ (rad)
+TOL_A, TOL_ALPHA, TOL_D, TOL_BETA, TOL_THETA = 0.25e-3, 1e-3, 0.25e-3, 1e-3, 5e-4
+
+
+def dh_constant(j, dep=None):
+    """Rotation and translation of Rz(off + dθ) Tz(d + dd) Tx(a + da) Rx(α + dα) Ry(β): joint
+    j's frame → the next, with the departures `dep[j]` = (da, dα, dd, dθ, β) when given."""
     a, alpha, d, off = DH[j]
-    r = rot_z(off)
-    t = np.array([0.0, 0.0, d]) + r @ np.array([a, 0.0, 0.0])
-    return r @ rot_x(alpha), t
+    da, dalpha, dd, dtheta, beta = dep[j] if dep is not None else (0.0,) * 5
+    r = rot_z(off + dtheta)
+    t = np.array([0.0, 0.0, d + dd]) + r @ np.array([a + da, 0.0, 0.0])
+    return r @ rot_x(alpha + dalpha) @ rot_y(beta), t
 
 
 def quat(r):
@@ -107,6 +125,13 @@ class Truth:
         self.mass_scale = 1 + 0.1 * rng.uniform(-1, 1, 3)
         self.com_shift = 0.010 * rng.uniform(-1, 1, (3, 3))
         self.k_scale = 1 + 0.15 * rng.uniform(-1, 1, 6)
+        u = lambda tol: float(rng.uniform(-tol, tol))
+        # (da, dα, dd, dθ, β) per DH row; J2 (parallel to J3) carries β instead of dd
+        self.dep = [
+            (u(TOL_A), u(TOL_ALPHA), 0.0 if j == 1 else u(TOL_D), u(TOL_THETA),
+             u(TOL_BETA) if j == 1 else 0.0)
+            for j in range(6)
+        ]
 
 
 def mjcf(truth, tool=(0.0, 0.0, 0.1)):
@@ -131,7 +156,7 @@ def mjcf(truth, tool=(0.0, 0.0, 0.1)):
         if j == 0:
             pos, rq = np.zeros(3), np.array([1.0, 0, 0, 0])
         else:
-            r, t = dh_constant(j - 1)
+            r, t = dh_constant(j - 1, truth.dep)
             pos, rq = t, quat(r)
         xml.append(f'{indent}<body name="l{j + 1}" pos="{fmt(pos)}" quat="{fmt(rq)}">')
         k = K1[j] * truth.k_scale[j]
@@ -164,7 +189,7 @@ def mjcf(truth, tool=(0.0, 0.0, 0.1)):
         closes.append(f"{indent}</body>")
         indent += "  "
     # the flange (DH frame 6) and the tool with its load
-    r, t = dh_constant(5)
+    r, t = dh_constant(5, truth.dep)
     xml.append(f'{indent}<body name="flange" pos="{fmt(t)}" quat="{fmt(quat(r))}">')
     xml.append(f'{indent}  <site name="tool" pos="{fmt(tool)}"/>')
     xml.append(f'{indent}  <body name="load" pos="{fmt(tool)}">')
@@ -177,9 +202,9 @@ def mjcf(truth, tool=(0.0, 0.0, 0.1)):
 
 
 class Plant:
-    def __init__(self, seed=1, friction=1.0):
+    def __init__(self, seed=1, friction=1.0, tool=(0.0, 0.0, 0.1)):
         self.truth = Truth(seed)
-        self.model = mujoco.MjModel.from_xml_string(mjcf(self.truth))
+        self.model = mujoco.MjModel.from_xml_string(mjcf(self.truth, tool))
         self.data = mujoco.MjData(self.model)
         m = self.model
         self.mq = [m.jnt_qposadr[m.joint(f"m{j + 1}").id] for j in range(6)]
@@ -194,6 +219,7 @@ class Plant:
         self.integral = np.zeros(6)
         self.speed = np.zeros(6)
         self.tau_m = np.zeros(6)
+        self.held = None  # motor angles the brakes hold, or None (servo on)
 
     def set_friction(self, scale):
         for j in range(6):
@@ -228,13 +254,29 @@ class Plant:
         self.tau_m = d.qfrc_bias[self.mv].copy()
         self.integral = self.tau_m / np.array(KI)
         self.speed = np.zeros(6)
+        self.held = None
         return self.state()
 
-    def step(self, dt, speed):
+    def step(self, dt, speed, brake=False):
         self.speed = np.asarray(speed, dtype=float)
         n = max(1, int(round(dt / DT)))
         d = self.data
+        if brake and self.held is None:
+            self.held = d.qpos[self.mq].copy()
+        elif not brake and self.held is not None:
+            # brake release: the speed loop starts holding the load the brakes held
+            self.held = None
+            mujoco.mj_forward(self.model, d)
+            self.integral = d.qfrc_bias[self.mv] / np.array(KI)
         for _ in range(n):
+            if self.held is not None:
+                d.qfrc_applied[:] = 0
+                d.qfrc_applied[self.sv] = -self.spring(d.qpos[self.sq])
+                mujoco.mj_step(self.model, d)
+                d.qpos[self.mq] = self.held
+                d.qvel[self.mv] = 0
+                self.tau_m = -self.spring(d.qpos[self.sq])
+                continue
             err = self.speed - d.qvel[self.mv]
             self.integral += err * DT
             tau = np.array(KP) * err + np.array(KI) * self.integral
@@ -258,6 +300,7 @@ class Plant:
         return {
             "t": d.time,
             "motor": list(theta),
+            "motor_speed": list(d.qvel[self.mv]),
             "link": list(theta + delta),
             "motor_torque": list(self.tau_m),
             "spring_torque": list(-self.spring(delta)),
@@ -275,8 +318,19 @@ def serve():
             r = json.loads(line)
             op = r.get("op")
             if op == "reset":
-                plant = Plant(int(r.get("seed", 1)), float(r.get("friction", 1.0)))
-                out = plant.reset(r["q"], float(r.get("load_kg", 0.0)))
+                q, tool = r["q"], r.get("tool", [0.0, 0.0, 0.1])
+                for name, v, n in (("q", q, 6), ("tool", tool, 3)):
+                    if len(v) != n or not all(math.isfinite(x) for x in v):
+                        raise ValueError(f"{name}: {n} finite numbers")
+                friction = float(r.get("friction", 1.0))
+                if not (0 <= friction <= 10):
+                    raise ValueError("friction: a scale 0..10 of the plant's friction")
+                load_kg = float(r.get("load_kg", 0.0))
+                if not (0 <= load_kg <= 100):
+                    raise ValueError("load_kg: 0..100 kg")
+                plant = Plant(int(r.get("seed", 1)), friction, tool)
+                out = plant.reset(q, load_kg)
+                out["dt"] = DT
             elif op == "step" and plant is not None:
                 s = r["speed"]
                 if len(s) != 6 or not all(math.isfinite(x) for x in s):
@@ -284,9 +338,12 @@ def serve():
                 dt = float(r["dt"])
                 if not (0 < dt <= 1.0):
                     raise ValueError("dt: 0 < dt <= 1 s")
-                out = plant.step(dt, s)
+                out = plant.step(dt, s, bool(r.get("brake", False)))
             elif op == "load" and plant is not None:
-                plant.model.body_mass[plant.load] = max(float(r["kg"]), 1e-6)
+                kg = float(r["kg"])
+                if not (0 <= kg <= 100):
+                    raise ValueError("kg: 0..100 kg")
+                plant.model.body_mass[plant.load] = max(kg, 1e-6)
                 out = plant.state()
             elif op == "quit":
                 return

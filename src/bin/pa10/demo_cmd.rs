@@ -372,24 +372,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
 /// Mean position error (mm) that resolver errors of `sigma` rad (1σ, every joint) alone cause
 /// at the configurations `qs`: 20 000 seeded draws per configuration.
 fn mc_floor_mm(model: &Model, qs: &[[f64; 6]], sigma: f64, seed: u64) -> f64 {
-    use rand_distr::{Distribution, StandardNormal};
-    const DRAWS: usize = 20_000;
-    let mut rng = Pcg64::seed_from_u64(seed ^ 0xf100);
-    let mut sum = 0.0;
-    for q in qs {
-        let k = pa10::accuracy::kernel::PositionKernel::new(model, q);
-        let p0 = k.position(&[0.0; 6]);
-        for _ in 0..DRAWS {
-            let d: [f64; 6] = std::array::from_fn(|_| {
-                let z: f64 = StandardNormal.sample(&mut rng);
-                sigma * z
-            });
-            let p = k.position(&d);
-            sum +=
-                ((p[0] - p0[0]).powi(2) + (p[1] - p0[1]).powi(2) + (p[2] - p0[2]).powi(2)).sqrt();
-        }
-    }
-    sum / (qs.len() * DRAWS).max(1) as f64 * 1e3
+    pa10::accuracy::floor_at(model, qs, sigma, 20_000, seed ^ 0xf100) * 1e3
 }
 
 fn report(

@@ -1,0 +1,512 @@
+//! The daemon judged by a physics engine we did not write: `pa10 demo`'s story on a PA10-6C that
+//! MuJoCo computes (`tests/mujoco/plant.py`: rotor inertia, harmonic-drive friction, flexible
+//! joints with hidden stiffness, masses and geometry), the daemon's unchanged core and the
+//! simulated servo controller's protocol in lockstep with it.
+//!
+//! 1. A calibration campaign gathered through the daemon (27 poses × 0/22/44 N; the instrument
+//!    is MuJoCo's tool pose seen through the drawn instrument frame with the paper's noise),
+//!    calibrated (the 30-parameter model and the nominal model placed).
+//! 2. Novel poses at 0/45/90 N with each model loaded into the daemon, judged by MuJoCo's tool
+//!    pose, beside the Monte Carlo resolver floor at those configurations.
+//! 3. Tracking of `docs/motion.md`'s six-point trajectory at 0 and 90 N: MuJoCo's link angles
+//!    against the trajectory's desired positions, every cycle.
+//!
+//! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--seed N]
+//! [--friction F] [--torque-source measured|model]` — needs `pip install mujoco` (the Python
+//! interpreter `PA10_PYTHON`, default `python3`). docs/judge.md quotes it.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, anyhow, bail, ensure};
+use pa10::calib::dataset::{Dataset, Effort, Meta, Row};
+use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
+use pa10::daemon::config::{Config, Settings};
+use pa10::daemon::core::Core;
+use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
+use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
+use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
+use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
+use pa10::sim::rig::{HOME, Lockstep, truth_for};
+use pa10::sim::servo::{ServoConfig, ServoSim};
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+use serde::Serialize;
+use serde_json::json;
+
+const CAL_LOADS: [f64; 3] = [0.0, 22.0, 44.0];
+const VAL_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
+const PERIOD_S: f64 = 0.002;
+
+struct Opts {
+    json: bool,
+    quick: bool,
+    seed: u64,
+    friction: f64,
+    torque_source: String,
+}
+
+fn opts() -> Result<Opts> {
+    let mut o = Opts {
+        json: false,
+        quick: false,
+        seed: 1,
+        friction: 1.0,
+        torque_source: "measured".into(),
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut value = |name: &str| args.next().ok_or_else(|| anyhow!("{name} needs a value"));
+        match a.as_str() {
+            "--json" => o.json = true,
+            "--quick" => o.quick = true,
+            "--seed" => o.seed = value("--seed")?.parse().context("--seed: an integer")?,
+            "--friction" => {
+                o.friction = value("--friction")?
+                    .parse()
+                    .context("--friction: a number")?;
+                ensure!(
+                    (0.0..=10.0).contains(&o.friction),
+                    "--friction: a scale 0…10 of the plant's friction, got {}",
+                    o.friction
+                );
+            }
+            "--torque-source" => {
+                o.torque_source = value("--torque-source")?;
+                ensure!(
+                    o.torque_source == "measured" || o.torque_source == "model",
+                    "--torque-source: measured or model, got {}",
+                    o.torque_source
+                );
+            }
+            other => bail!(
+                "unknown argument {other} (--json, --quick, --seed N, --friction F, --torque-source measured|model)"
+            ),
+        }
+    }
+    Ok(o)
+}
+
+/// Mean position error of one model at one load, mm.
+#[derive(Debug, Serialize)]
+struct LoadRow {
+    load_n: f64,
+    nominal_mean_mm: f64,
+    calibrated_mean_mm: f64,
+    nominal_peak_mm: f64,
+    calibrated_peak_mm: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct Tracking {
+    nominal_rms_mrad: f64,
+    calibrated_rms_mrad: f64,
+    nominal_peak_mrad: f64,
+    calibrated_peak_mrad: f64,
+    /// (load N, model, RMS mrad, peak mrad, how it ended) per run
+    runs: Vec<(f64, String, f64, f64, String)>,
+}
+
+#[derive(Debug, Serialize)]
+struct Outcome {
+    floor_mm: f64,
+    loads: Vec<LoadRow>,
+    tracking: Tracking,
+    friction: bool,
+    friction_scale: f64,
+    torque_source: String,
+    seed: u64,
+    calibration_rows: usize,
+    validation_poses: usize,
+    simulated_s: f64,
+    elapsed_s: f64,
+}
+
+fn main() -> Result<()> {
+    let o = opts()?;
+    let t0 = Instant::now();
+    let dir = std::env::temp_dir().join(format!("pa10-mujoco-judge-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let result = judge(&o, &dir, t0);
+    std::fs::remove_dir_all(&dir).ok();
+    let out = result?;
+    if o.json {
+        println!("{}", serde_json::to_string(&out)?);
+    } else {
+        print(&out);
+    }
+    Ok(())
+}
+
+/// `config/sim.yaml` in `dir` beside the nominal model, with `torque_source`.
+fn settings(dir: &Path, o: &Opts) -> Result<Settings> {
+    std::fs::write(dir.join("model-nominal.yaml"), NOMINAL_YAML)?;
+    let text = include_str!("../config/sim.yaml")
+        .replace(
+            "socket: /tmp/pa10d-sim.sock",
+            &format!("socket: {}", dir.join("api.sock").display()),
+        )
+        .replace("  seed: 1", &format!("  seed: {}", o.seed))
+        .replace(
+            "torque_source: measured",
+            &format!("torque_source: {}", o.torque_source),
+        )
+        .replace("log_level: info", "log_level: warn");
+    let path = dir.join("pa10d.yaml");
+    std::fs::write(&path, text)?;
+    Ok(Config::load(&path)?)
+}
+
+/// The daemon's core with the simulated controller driving the MuJoCo plant, ready.
+fn rig(settings: &Settings, o: &Opts) -> Result<Lockstep> {
+    let (truth, seed) = truth_for(settings)?;
+    let mut mo = MujocoOptions::new(o.seed, HOME);
+    mo.friction = o.friction;
+    if let Some(p) = std::env::var_os("PA10_PYTHON") {
+        mo.python = PathBuf::from(p);
+    }
+    let tool = CampaignSpec::default().tool.translation.vector;
+    mo.tool = [tool.x, tool.y, tool.z];
+    let plant = MujocoPlant::start(&mo).context(
+        "starting the MuJoCo plant (pip install mujoco; PA10_PYTHON names the interpreter)",
+    )?;
+    let servo = ServoSim::with_plant(truth, ServoConfig::default(), Box::new(plant), seed);
+    let mut ls = Lockstep::new(Core::from_config(settings), servo);
+    ls.run_until_ready(5.0)
+        .map_err(|e| anyhow!("the simulated servo controller: {e}"))?;
+    Ok(ls)
+}
+
+fn plant_ok(ls: &Lockstep) -> Result<()> {
+    match ls.servo.plant().failure() {
+        Some(f) => bail!("the MuJoCo plant failed: {f}"),
+        None => Ok(()),
+    }
+}
+
+fn ask(ls: &Lockstep, req: ApiRequest) -> Result<Answer> {
+    match ls.call(req) {
+        Reply::Ok(a) => Ok(a),
+        Reply::Refused(e) => bail!("pa10d refused: {e}"),
+    }
+}
+
+fn status(ls: &Lockstep) -> Result<Status> {
+    match ask(ls, ApiRequest::Status {})? {
+        Answer::Status(s) => Ok(*s),
+        other => bail!("status answered {other:?}"),
+    }
+}
+
+/// Sends a move and runs until the daemon holds again and the resolvers are still.
+fn move_settle(ls: &mut Lockstep, req: ApiRequest) -> Result<()> {
+    ask(ls, req)?;
+    let end = ls.now() + 60.0;
+    loop {
+        ls.run_for(0.01);
+        plant_ok(ls)?;
+        let s = status(ls)?;
+        match s.state {
+            State::Holding => break,
+            State::Fault => bail!("fault: {}", s.fault.unwrap_or_default()),
+            _ if ls.now() > end => bail!("the move did not settle in 60 s"),
+            _ => {}
+        }
+    }
+    settle(ls)
+}
+
+/// Runs until no resolver moves by more than 1.5 counts over 10 ms three times running,
+/// 0.1…1.5 s (the springs and the rotors ring after a move or a load change).
+fn settle(ls: &mut Lockstep) -> Result<()> {
+    const COUNT: f64 = std::f64::consts::TAU / (16384.0 * 50.0);
+    let t = ls.now();
+    let mut last = status(ls)?.q_motor;
+    let mut still = 0;
+    loop {
+        ls.run_for(0.01);
+        plant_ok(ls)?;
+        let q = status(ls)?.q_motor;
+        let step = (0..6).map(|j| (q[j] - last[j]).abs()).fold(0.0, f64::max);
+        still = if step <= 1.5 * COUNT { still + 1 } else { 0 };
+        last = q;
+        let waited = ls.now() - t;
+        if (waited >= 0.1 && still >= 3) || waited >= 1.5 {
+            return Ok(());
+        }
+    }
+}
+
+fn set_load(ls: &mut Lockstep, newtons: f64) -> Result<()> {
+    ls.servo.set_load(newtons);
+    ask(
+        ls,
+        ApiRequest::SetPayload {
+            newtons: Some(newtons),
+            mass_kg: None,
+            com: None,
+        },
+    )?;
+    settle(ls)
+}
+
+fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
+    let settings = settings(dir, o)?;
+    let kt = settings.control.torque_constants;
+    let tool = CampaignSpec::default().tool;
+    let nominal = Model::nominal().with_tool(&tool)?;
+    let mut ls = rig(&settings, o)?;
+    let truth = ls.servo.truth().clone();
+    let mut rng = Pcg64::seed_from_u64(o.seed ^ 0x3d0c);
+    let repeats = 2;
+
+    // 1. The calibration campaign through the daemon (quick: the 8 corner poses).
+    let poses: Vec<(String, Frame)> = grid_poses()
+        .into_iter()
+        .filter(|(id, _)| !o.quick || !id[1..].contains('1'))
+        .collect();
+    let mut data = Dataset::default();
+    let mut reference = HOME;
+    for (n, (id, target)) in poses.iter().enumerate() {
+        let q = nominal
+            .ik_nearest(target, &reference)
+            .map_err(|e| anyhow!("pose {id}: {e}"))?;
+        reference = q;
+        move_settle(&mut ls, ApiRequest::MoveJoints { q }).with_context(|| format!("pose {id}"))?;
+        let mut loads = CAL_LOADS.to_vec();
+        if n % 2 == 1 {
+            loads.reverse();
+        }
+        for load in loads {
+            set_load(&mut ls, load)?;
+            for _ in 0..repeats {
+                let s = status(&ls)?;
+                data.rows.push(Row {
+                    config_id: id.clone(),
+                    load_n: load,
+                    q: s.q_motor,
+                    effort: Effort::Current(s.current),
+                    pose: truth.observe_pose(&ls.servo.true_tool_pose(), &mut rng),
+                    direction: [0; 6],
+                    temperature_c: None,
+                    line: 0,
+                });
+                ls.run_for(0.01);
+            }
+        }
+    }
+    data.meta = Some(Meta {
+        inner_configs: Some(
+            poses
+                .iter()
+                .map(|(id, _)| id.clone())
+                .filter(|id| !id[1..].contains('1'))
+                .collect(),
+        ),
+        ..sidecar(
+            format!("MuJoCo plant (seed {}) through pa10d", o.seed),
+            &tool,
+            &truth.noise,
+        )
+    });
+
+    // 2. Calibrate: the full model and the nominal model placed.
+    let copts = CalibOptions {
+        torque_constants: Some(kt),
+        starts: 2,
+        seed: o.seed,
+        ..Default::default()
+    };
+    let full = calibrate(&nominal, &data, None, &copts, &|_| {})?.model;
+    let placed = fit_base_only(&nominal, &data, None, &copts)?;
+
+    // 3. Novel poses (instrument frame) at 0/45/90 N, each model loaded into the daemon.
+    let n_val = if o.quick { 2 } else { 6 };
+    let mut targets: Vec<Frame> = Vec::new();
+    while targets.len() < n_val {
+        let t = random_pose(&mut rng, [0.40, -0.25, -0.10], [0.75, 0.25, 0.30]);
+        let p = t.translation.vector;
+        let reference = [p.y.atan2(p.x), 0.3, 1.6, 0.0, 1.1, 0.0];
+        if nominal.ik_nearest(&t, &reference).is_ok() {
+            targets.push(placed.base_from_instrument().inverse() * t);
+        }
+    }
+    let truth_base = *truth.model.base_from_instrument();
+    let named: [(&str, &Model); 2] = [("nominal", &placed), ("calibrated", &full)];
+    let mut paths = Vec::new();
+    for (name, m) in &named {
+        let path = dir.join(format!("{name}.yaml"));
+        m.save(&path)?;
+        paths.push(path);
+    }
+    // errs[model][load]: position errors, mm
+    let mut errs = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
+    let mut val_q = Vec::new();
+    for (k, target) in targets.iter().enumerate() {
+        for (mi, (name, m)) in named.iter().enumerate() {
+            let path = paths[mi].display().to_string();
+            ask(&ls, ApiRequest::LoadModel { path })?;
+            let (position, quaternion) = pose_parts(&(m.base_from_instrument() * target));
+            move_settle(
+                &mut ls,
+                ApiRequest::MovePose {
+                    position,
+                    quaternion,
+                },
+            )
+            .with_context(|| format!("validation pose {} with the {name} model", k + 1))?;
+            if mi == 1 {
+                val_q.push(status(&ls)?.setpoint);
+            }
+            let mut order = vec![0, 1, 2];
+            if mi % 2 == 1 {
+                order.reverse();
+            }
+            for l in order {
+                set_load(&mut ls, VAL_LOADS[l])?;
+                let got = truth_base.inverse() * ls.servo.true_tool_pose();
+                errs[mi][l].push(pose_error(target, &got).fixed_rows::<3>(0).norm() * 1e3);
+            }
+        }
+    }
+    set_load(&mut ls, 0.0)?;
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let peak = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    let loads = VAL_LOADS
+        .iter()
+        .enumerate()
+        .map(|(l, &load_n)| LoadRow {
+            load_n,
+            nominal_mean_mm: mean(&errs[0][l]),
+            calibrated_mean_mm: mean(&errs[1][l]),
+            nominal_peak_mm: peak(&errs[0][l]),
+            calibrated_peak_mm: peak(&errs[1][l]),
+        })
+        .collect();
+    let floor_mm =
+        pa10::accuracy::floor_at(&full, &val_q, truth.noise.resolver_rad, 20_000, o.seed) * 1e3;
+
+    // 4. Tracking of the six-point trajectory at 0 and 90 N.
+    let mut runs = Vec::new();
+    for load in [0.0, 90.0] {
+        for (mi, (name, _)) in named.iter().enumerate() {
+            let path = paths[mi].display().to_string();
+            ask(&ls, ApiRequest::LoadModel { path })?;
+            move_settle(&mut ls, ApiRequest::MoveJoints { q: HOME })?;
+            set_load(&mut ls, load)?;
+            let (rms, pk, ended) = track(&mut ls)?;
+            runs.push((load, name.to_string(), rms, pk, ended));
+            if status(&ls)?.state == State::Fault {
+                ask(&ls, ApiRequest::Reset {})?;
+                ls.run_until_ready(5.0).map_err(|e| anyhow!("after a reset: {e}"))?;
+            }
+        }
+    }
+    set_load(&mut ls, 0.0)?;
+    let pick = |name: &str, f: fn(&(f64, String, f64, f64, String)) -> f64| {
+        runs.iter()
+            .filter(|r| r.1 == name)
+            .map(f)
+            .fold(0.0, f64::max)
+    };
+    let tracking = Tracking {
+        nominal_rms_mrad: pick("nominal", |r| r.2),
+        calibrated_rms_mrad: pick("calibrated", |r| r.2),
+        nominal_peak_mrad: pick("nominal", |r| r.3),
+        calibrated_peak_mrad: pick("calibrated", |r| r.3),
+        runs,
+    };
+    plant_ok(&ls)?;
+    Ok(Outcome {
+        floor_mm,
+        loads,
+        tracking,
+        friction: o.friction > 0.0,
+        friction_scale: o.friction,
+        torque_source: o.torque_source.clone(),
+        seed: o.seed,
+        calibration_rows: data.rows.len(),
+        validation_poses: targets.len(),
+        simulated_s: ls.now(),
+        elapsed_s: t0.elapsed().as_secs_f64(),
+    })
+}
+
+/// `docs/motion.md`'s six waypoints (link side, rad) at 2 s spacing.
+fn six_points() -> serde_json::Value {
+    let q = [
+        [0.3, 0.5, 1.4, 0.2, 1.0, 0.3],
+        [0.6, 0.7, 1.1, 0.4, 0.8, 0.6],
+        [0.4, 0.3, 1.5, 0.1, 1.2, 0.2],
+        [-0.2, 0.5, 1.2, -0.3, 0.9, -0.4],
+        [-0.5, 0.6, 1.0, -0.1, 1.1, 0.0],
+        [0.0, 0.4, 1.6, 0.0, 1.1, 0.0],
+    ];
+    json!(
+        q.iter()
+            .enumerate()
+            .map(|(i, p)| json!({"positions": p, "time_from_start": 2.0 * (i + 1) as f64}))
+            .collect::<Vec<_>>()
+    )
+}
+
+/// RMS and peak (mrad) of MuJoCo's link angles − the trajectory's desired positions, every
+/// cycle, over all joints, and how the trajectory ended ("succeeded" or the daemon's fault).
+fn track(ls: &mut Lockstep) -> Result<(f64, f64, String)> {
+    let r = ls.call_json(&json!({"cmd": "follow_trajectory", "points": six_points()}));
+    ensure!(r["ok"] == true, "follow_trajectory: {r}");
+    let (mut sum, mut peak, mut n) = (0.0, 0.0f64, 0usize);
+    loop {
+        ls.run_for(PERIOD_S);
+        plant_ok(ls)?;
+        let st = ls.call_json(&json!({"cmd": "status"}))["status"].clone();
+        let t = &st["trajectory"];
+        let desired: [f64; 6] = serde_json::from_value(t["desired"].clone())?;
+        let (link, _) = ls.servo.link_state();
+        for j in 0..6 {
+            let e = (link[j] - desired[j]) * 1e3;
+            sum += e * e;
+            peak = peak.max(e.abs());
+        }
+        n += 6;
+        if t["state"] != "executing" {
+            let ended = match st["fault"].as_str() {
+                Some(f) => f.to_string(),
+                None => t["state"].as_str().unwrap_or("?").to_string(),
+            };
+            return Ok(((sum / n as f64).sqrt(), peak, ended));
+        }
+        ensure!(n < 6 * 20_000, "the trajectory did not end in 40 s");
+    }
+}
+
+fn print(o: &Outcome) {
+    println!(
+        "MuJoCo judge (plant seed {}, friction ×{}, torque source {}): {} calibration rows, {} novel poses, {:.0} s simulated in {:.0} s",
+        o.seed,
+        o.friction_scale,
+        o.torque_source,
+        o.calibration_rows,
+        o.validation_poses,
+        o.simulated_s,
+        o.elapsed_s
+    );
+    println!("\n| load [N] | nominal mean / peak [mm] | calibrated mean / peak [mm] | MC floor [mm] |");
+    println!("|---|---|---|---|");
+    for l in &o.loads {
+        println!(
+            "| {:.0} | {:.3} / {:.3} | {:.3} / {:.3} | {:.3} |",
+            l.load_n,
+            l.nominal_mean_mm,
+            l.nominal_peak_mm,
+            l.calibrated_mean_mm,
+            l.calibrated_peak_mm,
+            o.floor_mm
+        );
+    }
+    println!("\n| six-point trajectory | load [N] | RMS [mrad] | peak [mrad] | ended |");
+    println!("|---|---|---|---|---|");
+    for (load, name, rms, pk, ended) in &o.tracking.runs {
+        println!("| {name} | {load:.0} | {rms:.3} | {pk:.3} | {ended} |");
+    }
+}
