@@ -12,7 +12,7 @@
 //!    against the trajectory's desired positions, every cycle.
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--seed N]
-//! [--friction F] [--torque-source measured|model]` — needs `pip install mujoco` (the Python
+//! [--friction F] [--torque-source measured|model|blended] [--current-filter-hz HZ]` — needs `pip install mujoco` (the Python
 //! interpreter `PA10_PYTHON`, default `python3`). docs/judge.md quotes it.
 
 use std::path::{Path, PathBuf};
@@ -44,6 +44,8 @@ struct Opts {
     seed: u64,
     friction: f64,
     torque_source: String,
+    /// The daemon's `current_filter_hz` (for `torque_source: measured`), Hz.
+    filter_hz: Option<f64>,
 }
 
 fn opts() -> Result<Opts> {
@@ -53,6 +55,7 @@ fn opts() -> Result<Opts> {
         seed: 1,
         friction: 1.0,
         torque_source: "measured".into(),
+        filter_hz: None,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -74,13 +77,20 @@ fn opts() -> Result<Opts> {
             "--torque-source" => {
                 o.torque_source = value("--torque-source")?;
                 ensure!(
-                    o.torque_source == "measured" || o.torque_source == "model",
-                    "--torque-source: measured or model, got {}",
+                    ["measured", "model", "blended"].contains(&o.torque_source.as_str()),
+                    "--torque-source: measured, model or blended, got {}",
                     o.torque_source
                 );
             }
+            "--current-filter-hz" => {
+                let f: f64 = value("--current-filter-hz")?
+                    .parse()
+                    .context("--current-filter-hz: a number")?;
+                ensure!(f > 0.0 && f.is_finite(), "--current-filter-hz: positive Hz");
+                o.filter_hz = Some(f);
+            }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --seed N, --friction F, --torque-source measured|model)"
+                "unknown argument {other} (--json, --quick, --seed N, --friction F, --torque-source measured|model|blended, --current-filter-hz HZ)"
             ),
         }
     }
@@ -95,6 +105,13 @@ struct LoadRow {
     calibrated_mean_mm: f64,
     nominal_peak_mm: f64,
     calibrated_peak_mm: f64,
+    /// At rest: RMS over joints of MuJoCo's link angles − the daemon's setpoint, mean over
+    /// poses, mrad (where the compensation says the link is vs where it came to rest)
+    nominal_rest_mrad: f64,
+    calibrated_rest_mrad: f64,
+    /// Time from the load change until the resolvers and MuJoCo's links were still, mean over
+    /// the calibrated model's poses, s (at most 5)
+    settle_mean_s: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -104,7 +121,11 @@ struct Tracking {
     nominal_peak_mrad: f64,
     calibrated_peak_mrad: f64,
     /// (load N, model, RMS mrad, peak mrad, how it ended) per run
-    runs: Vec<(f64, String, f64, f64, String)>,
+    runs: Vec<Run>,
+    /// A 500 Hz `servo` stream (sines on J1, J2, J3, J5, ≤ 0.25 rad/s, 4 s): (load N, model,
+    /// RMS mrad, peak mrad, how it ended) of MuJoCo's link angles − the streamed target after
+    /// the first second
+    stream: Vec<Run>,
 }
 
 #[derive(Debug, Serialize)]
@@ -114,6 +135,12 @@ struct Outcome {
     tracking: Tracking,
     friction: bool,
     friction_scale: f64,
+    /// Time from the end of a validation move until the arm was still, mean, s: nominal,
+    /// calibrated
+    move_settle_mean_s: (f64, f64),
+    ring: Option<Ring>,
+    /// Why the dynamic runs ended early (a fault the daemon did not recover from), if so
+    aborted: Option<String>,
     torque_source: String,
     seed: u64,
     calibration_rows: usize,
@@ -150,6 +177,12 @@ fn settings(dir: &Path, o: &Opts) -> Result<Settings> {
         .replace(
             "torque_source: measured",
             &format!("torque_source: {}", o.torque_source),
+        )
+        // the demo's margin: a 90 N load on the wrist rings at ≈ 6 Hz after a move (docs/judge.md)
+        .replace("following_error: 0.01", "following_error: 0.05")
+        .replace(
+            "current_filter_hz: 20.0",
+            &format!("current_filter_hz: {}", o.filter_hz.unwrap_or(20.0)),
         )
         .replace("log_level: info", "log_level: warn");
     let path = dir.join("pa10d.yaml");
@@ -198,8 +231,9 @@ fn status(ls: &Lockstep) -> Result<Status> {
     }
 }
 
-/// Sends a move and runs until the daemon holds again and the resolvers are still.
-fn move_settle(ls: &mut Lockstep, req: ApiRequest) -> Result<()> {
+/// Sends a move and runs until the daemon holds again and the arm is still ([`settle`]); the
+/// time from the end of the move until still, s.
+fn move_settle(ls: &mut Lockstep, req: ApiRequest) -> Result<f64> {
     ask(ls, req)?;
     let end = ls.now() + 60.0;
     loop {
@@ -216,28 +250,69 @@ fn move_settle(ls: &mut Lockstep, req: ApiRequest) -> Result<()> {
     settle(ls)
 }
 
-/// Runs until no resolver moves by more than 1.5 counts over 10 ms three times running,
-/// 0.1…1.5 s (the springs and the rotors ring after a move or a load change).
-fn settle(ls: &mut Lockstep) -> Result<()> {
+/// Runs until neither a resolver (by more than 1.5 counts) nor a MuJoCo link (by more than
+/// 10 µrad) moves over 10 ms three times running, 0.1…5 s: the springs ring after a move or a
+/// load change, and a link can ring while the motors are held still — the instrument waits
+/// for the tool to stop, as a lab's does. Returns the time it took, s.
+fn settle(ls: &mut Lockstep) -> Result<f64> {
     const COUNT: f64 = std::f64::consts::TAU / (16384.0 * 50.0);
+    const LINK_STILL: f64 = 1e-5;
     let t = ls.now();
-    let mut last = status(ls)?.q_motor;
+    let mut last = (status(ls)?.q_motor, ls.servo.link_state().0);
     let mut still = 0;
     loop {
         ls.run_for(0.01);
         plant_ok(ls)?;
-        let q = status(ls)?.q_motor;
-        let step = (0..6).map(|j| (q[j] - last[j]).abs()).fold(0.0, f64::max);
-        still = if step <= 1.5 * COUNT { still + 1 } else { 0 };
-        last = q;
+        let now = (status(ls)?.q_motor, ls.servo.link_state().0);
+        let step =
+            |a: &[f64; 6], b: &[f64; 6]| (0..6).map(|j| (a[j] - b[j]).abs()).fold(0.0, f64::max);
+        let quiet = step(&now.0, &last.0) <= 1.5 * COUNT && step(&now.1, &last.1) <= LINK_STILL;
+        still = if quiet { still + 1 } else { 0 };
+        last = now;
         let waited = ls.now() - t;
-        if (waited >= 0.1 && still >= 3) || waited >= 1.5 {
-            return Ok(());
+        if (waited >= 0.1 && still >= 3) || waited >= 5.0 {
+            return Ok(waited);
         }
     }
 }
 
-fn set_load(ls: &mut Lockstep, newtons: f64) -> Result<()> {
+/// After a run that may have faulted: `reset` when faulted, then until the daemon is ready;
+/// what the fault was, if there was one.
+fn recover(ls: &mut Lockstep) -> Result<Option<String>> {
+    let st = status(ls)?;
+    if st.state == State::Holding {
+        return Ok(None);
+    }
+    let fault = st.fault.or(Some(format!("{:?}", st.state)));
+    // the controller stops the arm and closes the brakes; the links ring down on the springs
+    ls.run_for(5.0);
+    // a reset restarts the session with the controller; the first may find it still in
+    // control mode (it held the arm while the daemon was faulted) and fault again
+    for _ in 0..3 {
+        if status(ls)?.state == State::Fault {
+            ask(ls, ApiRequest::Reset {})?;
+        }
+        if ls.run_until_ready(10.0).is_ok() {
+            ls.run_for(0.2);
+            if status(ls)?.state == State::Holding {
+                return Ok(fault);
+            }
+        }
+    }
+    let speed = ls
+        .servo
+        .plant()
+        .motor_speeds()
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    bail!(
+        "the daemon did not recover from {fault:?}: the controller is {:?}, its motors still turning at up to {speed:.2} rad/s",
+        ls.servo.state()
+    )
+}
+
+/// Hangs `newtons` on the arm, tells the daemon, waits until it is still; how long that took, s.
+fn set_load(ls: &mut Lockstep, newtons: f64) -> Result<f64> {
     ls.servo.set_load(newtons);
     ask(
         ls,
@@ -278,7 +353,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             loads.reverse();
         }
         for load in loads {
-            set_load(&mut ls, load)?;
+            set_load(&mut ls, load).with_context(|| format!("pose {id} at {load} N"))?;
             for _ in 0..repeats {
                 let s = status(&ls)?;
                 data.rows.push(Row {
@@ -317,6 +392,12 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         seed: o.seed,
         ..Default::default()
     };
+    // With the daemon's torques from the model, the fit's too (the currents carry friction).
+    let data = if o.torque_source == "model" {
+        data.with_model_torques(&nominal)
+    } else {
+        data
+    };
     let full = calibrate(&nominal, &data, None, &copts, &|_| {})?.model;
     let placed = fit_base_only(&nominal, &data, None, &copts)?;
 
@@ -341,13 +422,17 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     }
     // errs[model][load]: position errors, mm
     let mut errs = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
+    let mut rest = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
+    let mut settle_s = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
+    let mut move_settle_s = vec![Vec::new(); named.len()];
     let mut val_q = Vec::new();
     for (k, target) in targets.iter().enumerate() {
         for (mi, (name, m)) in named.iter().enumerate() {
             let path = paths[mi].display().to_string();
-            ask(&ls, ApiRequest::LoadModel { path })?;
+            ask(&ls, ApiRequest::LoadModel { path })
+                .with_context(|| format!("validation pose {}: loading the {name} model", k + 1))?;
             let (position, quaternion) = pose_parts(&(m.base_from_instrument() * target));
-            move_settle(
+            let after_move = move_settle(
                 &mut ls,
                 ApiRequest::MovePose {
                     position,
@@ -355,6 +440,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                 },
             )
             .with_context(|| format!("validation pose {} with the {name} model", k + 1))?;
+            move_settle_s[mi].push(after_move);
             if mi == 1 {
                 val_q.push(status(&ls)?.setpoint);
             }
@@ -363,9 +449,17 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                 order.reverse();
             }
             for l in order {
-                set_load(&mut ls, VAL_LOADS[l])?;
+                let load = VAL_LOADS[l];
+                let waited = set_load(&mut ls, load).with_context(|| {
+                    format!(
+                        "validation pose {} with the {name} model at {load} N",
+                        k + 1
+                    )
+                })?;
+                settle_s[mi][l].push(waited);
                 let got = truth_base.inverse() * ls.servo.true_tool_pose();
                 errs[mi][l].push(pose_error(target, &got).fixed_rows::<3>(0).norm() * 1e3);
+                rest[mi][l].push(rest_mrad(&ls)?);
             }
         }
     }
@@ -381,29 +475,22 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             calibrated_mean_mm: mean(&errs[1][l]),
             nominal_peak_mm: peak(&errs[0][l]),
             calibrated_peak_mm: peak(&errs[1][l]),
+            nominal_rest_mrad: mean(&rest[0][l]),
+            calibrated_rest_mrad: mean(&rest[1][l]),
+            settle_mean_s: mean(&settle_s[1][l]),
         })
         .collect();
     let floor_mm =
         pa10::accuracy::floor_at(&full, &val_q, truth.noise.resolver_rad, 20_000, o.seed) * 1e3;
 
-    // 4. Tracking of the six-point trajectory at 0 and 90 N.
-    let mut runs = Vec::new();
-    for load in [0.0, 90.0] {
-        for (mi, (name, _)) in named.iter().enumerate() {
-            let path = paths[mi].display().to_string();
-            ask(&ls, ApiRequest::LoadModel { path })?;
-            move_settle(&mut ls, ApiRequest::MoveJoints { q: HOME })?;
-            set_load(&mut ls, load)?;
-            let (rms, pk, ended) = track(&mut ls)?;
-            runs.push((load, name.to_string(), rms, pk, ended));
-            if status(&ls)?.state == State::Fault {
-                ask(&ls, ApiRequest::Reset {})?;
-                ls.run_until_ready(5.0).map_err(|e| anyhow!("after a reset: {e}"))?;
-            }
-        }
-    }
-    set_load(&mut ls, 0.0)?;
-    let pick = |name: &str, f: fn(&(f64, String, f64, f64, String)) -> f64| {
+    // 4. Tracking of the six-point trajectory and a 500 Hz stream at 0 and 90 N; 5. the
+    //    loaded wrist's ring-down. A run the daemon cannot come back from ends the judge
+    //    there, said in `aborted` (the numbers before it stand).
+    let (mut runs, mut streams, mut ring) = (Vec::new(), Vec::new(), None);
+    let aborted = dynamics(&mut ls, &named, &paths, &mut runs, &mut streams, &mut ring)
+        .err()
+        .map(|e| format!("{e:#}"));
+    let pick = |name: &str, f: fn(&Run) -> f64| {
         runs.iter()
             .filter(|r| r.1 == name)
             .map(f)
@@ -415,14 +502,17 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         nominal_peak_mrad: pick("nominal", |r| r.3),
         calibrated_peak_mrad: pick("calibrated", |r| r.3),
         runs,
+        stream: streams,
     };
-    plant_ok(&ls)?;
     Ok(Outcome {
         floor_mm,
         loads,
         tracking,
         friction: o.friction > 0.0,
         friction_scale: o.friction,
+        move_settle_mean_s: (mean(&move_settle_s[0]), mean(&move_settle_s[1])),
+        ring,
+        aborted,
         torque_source: o.torque_source.clone(),
         seed: o.seed,
         calibration_rows: data.rows.len(),
@@ -430,6 +520,149 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         simulated_s: ls.now(),
         elapsed_s: t0.elapsed().as_secs_f64(),
     })
+}
+
+type Run = (f64, String, f64, f64, String);
+
+/// Phases 4 and 5 of [`judge`]: what each measured goes into `runs`, `streams`, `ring`.
+fn dynamics(
+    ls: &mut Lockstep,
+    named: &[(&str, &Model); 2],
+    paths: &[PathBuf],
+    runs: &mut Vec<Run>,
+    streams: &mut Vec<Run>,
+    ring: &mut Option<Ring>,
+) -> Result<()> {
+    for load in [0.0, 90.0] {
+        for (mi, (name, _)) in named.iter().enumerate() {
+            let what = format!("at {load} N with the {name} model");
+            let path = paths[mi].display().to_string();
+            ask(ls, ApiRequest::LoadModel { path }).with_context(|| what.clone())?;
+            move_settle(ls, ApiRequest::MoveJoints { q: HOME }).with_context(|| what.clone())?;
+            set_load(ls, load)?;
+            let (rms, pk, ended) = track(ls).with_context(|| format!("tracking {what}"))?;
+            runs.push((load, name.to_string(), rms, pk, ended));
+            recover(ls).with_context(|| format!("after tracking {what}"))?;
+            move_settle(ls, ApiRequest::MoveJoints { q: HOME }).with_context(|| what.clone())?;
+            let (rms, pk) = stream(ls).with_context(|| format!("the stream {what}"))?;
+            let ended = recover(ls)
+                .with_context(|| format!("after the stream {what}"))?
+                .unwrap_or_else(|| "holding".into());
+            streams.push((load, name.to_string(), rms, pk, ended));
+        }
+    }
+    let path = paths[1].display().to_string();
+    ask(ls, ApiRequest::LoadModel { path })?;
+    move_settle(ls, ApiRequest::MoveJoints { q: HOME }).context("the ring-down: to HOME")?;
+    set_load(ls, 90.0)?;
+    *ring = Some(ring_down(ls).context("the ring-down")?);
+    recover(ls).context("after the ring-down")?;
+    set_load(ls, 0.0)?;
+    Ok(())
+}
+
+/// J5's link after a 0.2 rad move of J5 at [`HOME`] with 90 N at the tool (calibrated model).
+#[derive(Debug, Serialize)]
+struct Ring {
+    /// Dominant frequency of MuJoCo's J5 link − setpoint after the move (zero crossings), Hz.
+    freq_hz: f64,
+    /// Its amplitude (half peak-to-peak) in the first and the last half second of 4 s, mrad.
+    first_mrad: f64,
+    last_mrad: f64,
+    /// How the 4 s ended: "holding" or the daemon's fault.
+    ended: String,
+}
+
+/// Moves J5 by 0.2 rad and records MuJoCo's J5 link − the daemon's setpoint every cycle for 4 s.
+fn ring_down(ls: &mut Lockstep) -> Result<Ring> {
+    let mut q = HOME;
+    q[4] += 0.2;
+    ask(ls, ApiRequest::MoveJoints { q })?;
+    let end = ls.now() + 30.0;
+    while status(ls)?.state != State::Holding && ls.now() < end {
+        ls.run_for(PERIOD_S);
+        if status(ls)?.state == State::Fault {
+            break;
+        }
+    }
+    let mut e = Vec::with_capacity(2000);
+    let mut ended = "holding".to_string();
+    for _ in 0..2000 {
+        ls.run_for(PERIOD_S);
+        plant_ok(ls)?;
+        let st = status(ls)?;
+        if st.state == State::Fault {
+            ended = st.fault.unwrap_or_default();
+            break;
+        }
+        e.push((ls.servo.link_state().0[4] - st.setpoint[4]) * 1e3);
+    }
+    let half = |v: &[f64]| {
+        let (lo, hi) = v
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                (a.min(*x), b.max(*x))
+            });
+        if v.is_empty() { 0.0 } else { 0.5 * (hi - lo) }
+    };
+    let n = e.len();
+    let mean = e.iter().sum::<f64>() / n.max(1) as f64;
+    let crossings = e
+        .windows(2)
+        .filter(|w| (w[0] - mean).signum() != (w[1] - mean).signum())
+        .count();
+    Ok(Ring {
+        freq_hz: crossings as f64 / 2.0 / (n.max(1) as f64 * PERIOD_S),
+        first_mrad: half(&e[..n.min(250)]),
+        last_mrad: half(&e[n.saturating_sub(250)..]),
+        ended,
+    })
+}
+
+/// RMS over joints of MuJoCo's link angles − the daemon's setpoint, mrad.
+fn rest_mrad(ls: &Lockstep) -> Result<f64> {
+    let setpoint = status(ls)?.setpoint;
+    let (link, _) = ls.servo.link_state();
+    let ss: f64 = (0..6).map(|j| (link[j] - setpoint[j]).powi(2)).sum();
+    Ok((ss / 6.0).sqrt() * 1e3)
+}
+
+/// A 500 Hz `servo` stream from [`HOME`]: sines of 0.2 Hz on J1 (0.2 rad), J2 (0.1), J3
+/// (−0.1), J5 (0.2) for 4 s; RMS and peak (mrad) of MuJoCo's link angles − the streamed
+/// target over all joints after the first second (the start-up catch-up). Ends at rest.
+fn stream(ls: &mut Lockstep) -> Result<(f64, f64)> {
+    let amp = [0.2, 0.1, -0.1, 0.0, 0.2, 0.0];
+    let (mut sum, mut peak, mut n) = (0.0, 0.0f64, 0usize);
+    for k in 0..2000 {
+        let t = k as f64 * PERIOD_S;
+        let w = (std::f64::consts::TAU * 0.2 * t).sin();
+        let target: [f64; 6] = std::array::from_fn(|j| HOME[j] + amp[j] * w);
+        let servo = ApiRequest::Servo {
+            positions: Some(target),
+            position: None,
+            quaternion: None,
+        };
+        if let Reply::Refused(_) = ls.call(servo) {
+            break; // faulted: `recover` says why
+        }
+        ls.run_for(PERIOD_S);
+        plant_ok(ls)?;
+        if t >= 1.0 {
+            let (link, _) = ls.servo.link_state();
+            for j in 0..6 {
+                let e = (link[j] - target[j]) * 1e3;
+                sum += e * e;
+                peak = peak.max(e.abs());
+            }
+            n += 6;
+        }
+    }
+    // the stream's deadline stops the arm; then it comes to rest
+    ls.run_for(0.5);
+    if status(ls)?.state == State::Holding {
+        settle(ls)?;
+    }
+    Ok(((sum / n.max(1) as f64).sqrt(), peak))
 }
 
 /// `docs/motion.md`'s six waypoints (link side, rad) at 2 s spacing.
@@ -491,7 +724,9 @@ fn print(o: &Outcome) {
         o.simulated_s,
         o.elapsed_s
     );
-    println!("\n| load [N] | nominal mean / peak [mm] | calibrated mean / peak [mm] | MC floor [mm] |");
+    println!(
+        "\n| load [N] | nominal mean / peak [mm] | calibrated mean / peak [mm] | MC floor [mm] |"
+    );
     println!("|---|---|---|---|");
     for l in &o.loads {
         println!(
@@ -503,6 +738,33 @@ fn print(o: &Outcome) {
             l.calibrated_peak_mm,
             o.floor_mm
         );
+    }
+    println!(
+        "\nAt rest, MuJoCo's link − the daemon's setpoint (RMS over joints, mean over poses):"
+    );
+    for l in &o.loads {
+        println!(
+            "  {:.0} N: nominal {:.3} mrad, calibrated {:.3} mrad; still after {:.2} s",
+            l.load_n, l.nominal_rest_mrad, l.calibrated_rest_mrad, l.settle_mean_s
+        );
+    }
+    println!(
+        "After a validation move the arm was still in {:.2} s (nominal) / {:.2} s (calibrated), mean.",
+        o.move_settle_mean_s.0, o.move_settle_mean_s.1
+    );
+    if let Some(r) = &o.ring {
+        println!(
+            "J5 after a 0.2 rad move at 90 N (calibrated): {:.1} Hz, amplitude {:.3} mrad in the first 0.5 s, {:.3} mrad in the last 0.5 s of 4 s ({})",
+            r.freq_hz, r.first_mrad, r.last_mrad, r.ended
+        );
+    }
+    if let Some(a) = &o.aborted {
+        println!("\nThe dynamic runs ended early: {a}");
+    }
+    println!("\n| 500 Hz servo stream | load [N] | RMS [mrad] | peak [mrad] | ended |");
+    println!("|---|---|---|---|---|");
+    for (load, name, rms, pk, ended) in &o.tracking.stream {
+        println!("| {name} | {load:.0} | {rms:.3} | {pk:.3} | {ended} |");
     }
     println!("\n| six-point trajectory | load [N] | RMS [mrad] | peak [mrad] | ended |");
     println!("|---|---|---|---|---|");

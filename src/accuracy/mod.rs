@@ -544,7 +544,8 @@ pub fn floor_at(model: &Model, qs: &[[f64; 6]], sigma: f64, draws: usize, seed: 
                 sigma * z
             });
             let p = k.position(&d);
-            sum += ((p[0] - p0[0]).powi(2) + (p[1] - p0[1]).powi(2) + (p[2] - p0[2]).powi(2)).sqrt();
+            sum +=
+                ((p[0] - p0[0]).powi(2) + (p[1] - p0[1]).powi(2) + (p[2] - p0[2]).powi(2)).sqrt();
         }
     }
     sum / (qs.len() * draws).max(1) as f64
@@ -561,7 +562,10 @@ mod tests {
         let sigma = 0.64 * ARCMIN;
         let mc = floor_at(&m, &[q], sigma, 20_000, 7);
         let lin = linear::norm_stats(&linear::position_covariance(&m, &q, &[sigma; 6])).mean;
-        assert!((mc / lin - 1.0).abs() < 0.02, "MC {mc} m vs linearised {lin} m");
+        assert!(
+            (mc / lin - 1.0).abs() < 0.02,
+            "MC {mc} m vs linearised {lin} m"
+        );
         assert_eq!(floor_at(&m, &[], sigma, 10, 7), 0.0);
     }
 

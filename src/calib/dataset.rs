@@ -128,6 +128,23 @@ const MAX_CURRENT: f64 = 1e3;
 const MAX_COORD: f64 = 100.0;
 
 impl Dataset {
+    /// The dataset with every row's effort replaced by `model`'s static joint torques (its
+    /// bodies and the row's hung load, N, at the row's resolver angles): the counterpart of
+    /// pa10d's `torque_source: model`. A stiffness identified on these torques deflects the
+    /// links by what the daemon computes at run time, and the motor currents' friction (a
+    /// harmonic drive's stiction holds anything within ±its Coulomb level at rest,
+    /// docs/judge.md) never enters the fit; the model's mass errors are absorbed into the
+    /// identified stiffness instead.
+    pub fn with_model_torques(&self, model: &crate::model::Model) -> Self {
+        let g = model.gravity();
+        let mut out = self.clone();
+        for r in &mut out.rows {
+            let load = crate::model::ExternalLoad::hung(r.load_n, &g);
+            r.effort = Effort::Torque(model.static_torques(&r.q, &load));
+        }
+        out
+    }
+
     /// Reads `path` and, when it exists, the sidecar `<stem>.meta.yaml` beside it.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, DatasetError> {
         let path = path.as_ref();
@@ -488,6 +505,43 @@ mod tests {
 
     fn err(text: &str) -> String {
         Dataset::parse(text, "cal.csv").unwrap_err().to_string()
+    }
+
+    #[test]
+    fn model_torques_replace_the_currents_and_carry_the_hung_load_at_the_tool() {
+        let m = crate::model::Model::nominal();
+        let row = |load_n: f64| Row {
+            config_id: "c".into(),
+            load_n,
+            q: [0.0, 0.5, 1.2, 0.0, 0.8, 0.0],
+            effort: Effort::Current([9.0; 6]),
+            pose: Frame::identity(),
+            direction: [0; 6],
+            temperature_c: None,
+            line: 0,
+        };
+        let d = Dataset {
+            rows: vec![row(0.0), row(44.0)],
+            ..Default::default()
+        }
+        .with_model_torques(&m);
+        let (Effort::Torque(t0), Effort::Torque(t44)) = (d.rows[0].effort, d.rows[1].effort) else {
+            panic!("torques expected: {:?}", d.rows[0].effort);
+        };
+        // 44 N more at the tool: J2 carries 44 N × the tool's horizontal reach from its axis
+        let tip = m.fk(&d.rows[0].q).translation.vector;
+        let reach = (tip.x * tip.x + tip.y * tip.y).sqrt();
+        assert!(
+            ((t44[1] - t0[1]).abs() - 44.0 * reach).abs() < 1e-9,
+            "{t0:?} {t44:?}"
+        );
+        assert_eq!(
+            t0,
+            m.static_torques(
+                &row(0.0).q,
+                &crate::model::ExternalLoad::hung(0.0, &m.gravity())
+            )
+        );
     }
 
     #[test]

@@ -147,7 +147,11 @@ impl MujocoPlant {
         plant.state = plant.request(&reset)?;
         plant.step_s = match plant.state.dt {
             Some(dt) if dt > 0.0 && dt <= 0.01 => dt,
-            other => return Err(MujocoError::Protocol(format!("a physics step of {other:?} s"))),
+            other => {
+                return Err(MujocoError::Protocol(format!(
+                    "a physics step of {other:?} s"
+                )));
+            }
         };
         Ok(plant)
     }
@@ -168,7 +172,9 @@ impl MujocoPlant {
             return Err(MujocoError::Protocol("nothing: the process ended".into()));
         }
         if n > MAX_LINE {
-            return Err(MujocoError::Protocol(format!("a line over {MAX_LINE} bytes")));
+            return Err(MujocoError::Protocol(format!(
+                "a line over {MAX_LINE} bytes"
+            )));
         }
         let s: State = match serde_json::from_str(&self.line) {
             Ok(s) => s,

@@ -98,6 +98,8 @@ pub struct ServoSim {
     state: ServoState,
     fault: FaultCode,
     stopping: bool,
+    /// When a controlled stop closes the brakes even if a motor still creeps, s.
+    stop_deadline_s: f64,
     now: f64,
     plant: Box<dyn Plant>,
     target: [f64; 6],
@@ -110,8 +112,10 @@ pub struct ServoSim {
     rng: Pcg64,
 }
 
-/// Motor speed below which a controlled stop is complete, rad/s.
-const STOPPED_SPEED: f64 = 1e-6;
+/// Motor speed below which a controlled stop is complete and the brakes close, rad/s: a
+/// drive's standstill threshold. A plant with dynamics (a rotor on a ringing spring, MuJoCo's)
+/// never reaches exactly zero; 1 mrad/s for the last few ms of a stop moves a motor by µrad.
+const STOPPED_SPEED: f64 = 1e-3;
 
 fn gauss(rng: &mut Pcg64) -> f64 {
     StandardNormal.sample(rng)
@@ -141,6 +145,7 @@ impl ServoSim {
             state: ServoState::Stopped,
             fault: FaultCode::None,
             stopping: false,
+            stop_deadline_s: 0.0,
             now: 0.0,
             plant,
             target: [0.0; 6],
@@ -212,6 +217,21 @@ impl ServoSim {
         self.push_state(out);
     }
 
+    /// A controlled stop: the speeds ramp down at `stop_decel`; the brakes close when the
+    /// motors are still or, at the latest, 0.5 s after the ramp from the fastest motor's speed
+    /// would have ended (a plant that rings or hunts at rest never reaches exact standstill).
+    fn begin_stop(&mut self) {
+        if !self.stopping {
+            let fastest = self
+                .plant
+                .motor_speeds()
+                .iter()
+                .fold(0.0f64, |m, v| m.max(v.abs()));
+            self.stop_deadline_s = self.now + fastest / self.cfg.stop_decel + 0.5;
+        }
+        self.stopping = true;
+    }
+
     fn push(&self, m: Message, out: &mut Vec<CanFrame>) {
         if let Ok(f) = protocol::encode(&m) {
             out.push(f);
@@ -252,13 +272,12 @@ impl ServoSim {
             t += dt;
         }
         self.now = now;
-        if self.stopping
-            && self
-                .plant
-                .motor_speeds()
-                .iter()
-                .all(|v| v.abs() < STOPPED_SPEED)
-        {
+        let still = self
+            .plant
+            .motor_speeds()
+            .iter()
+            .all(|v| v.abs() < STOPPED_SPEED);
+        if self.stopping && (still || now >= self.stop_deadline_s) {
             self.stopping = false;
             self.state = ServoState::Stopped;
             self.target = [0.0; 6];
@@ -322,7 +341,7 @@ impl ServoSim {
                 true
             }
             (Request::Stop, BrakeRelease | Control) => {
-                self.stopping = true;
+                self.begin_stop();
                 true
             }
             (Request::Estop, _) => {
@@ -386,14 +405,14 @@ impl ServoSim {
                     },
                     out,
                 );
-                self.stopping = true;
+                self.begin_stop();
                 return;
             }
             if cmds
                 .iter()
                 .any(|c| c.mode & mode::SERVO == 0 || c.mode & mode::BRAKE != 0)
             {
-                self.stopping = true;
+                self.begin_stop();
                 return;
             }
             for (j, c) in cmds.iter().enumerate() {

@@ -135,11 +135,24 @@ impl Controller {
     }
 
     /// Step 3: the joint torques (N·m) the compensation uses: the model's statics at the
-    /// setpoint with the payload, or the measured currents × torque constants through the
-    /// first-order low-pass of `filter_hz`.
+    /// setpoint with the payload; or the measured currents × torque constants through the
+    /// first-order low-pass of `filter_hz`; or (`blended`) the model's statics plus the
+    /// correction `measured − model` low-passed at [`BLEND_HZ`] while holding, frozen in
+    /// motion.
     pub(super) fn torque_estimate(&mut self, state: &JointState) -> [f64; 6] {
         match self.p.torque_source {
             TorqueSource::Model => self.model.static_torques(&self.setpoint.q, &self.load()),
+            TorqueSource::Blended => {
+                let model = self.model.static_torques(&self.setpoint.q, &self.load());
+                if matches!(self.activity, Activity::Holding) {
+                    let alpha = 1.0 - (-std::f64::consts::TAU * BLEND_HZ * self.p.period_s).exp();
+                    for j in 0..6 {
+                        let m = state.current[j] * self.p.torque_constants[j];
+                        self.tau_filtered[j] += alpha * (m - model[j] - self.tau_filtered[j]);
+                    }
+                }
+                std::array::from_fn(|j| model[j] + self.tau_filtered[j])
+            }
             TorqueSource::Measured => {
                 let alpha =
                     1.0 - (-std::f64::consts::TAU * self.p.filter_hz * self.p.period_s).exp();
@@ -291,6 +304,38 @@ mod tests {
         let expect = Model::nominal().static_torques(&c.setpoint().q, &ExternalLoad::default());
         assert_eq!(t, expect);
         assert!(t[1].abs() > 1.0, "gravity on J2: {t:?}");
+    }
+
+    #[test]
+    fn blended_torques_learn_the_measured_excess_at_rest_slowly_and_freeze_it_in_motion() {
+        let mut p = params();
+        p.torque_source = TorqueSource::Blended;
+        let kt = p.torque_constants;
+        let mut c = Controller::new(Model::nominal(), p, &state(Q0, [0.0; 6], 0.0));
+        let model = Model::nominal().static_torques(&c.setpoint().q, &ExternalLoad::default());
+        // currents that say 12 N·m more than the model on every joint (an undeclared load)
+        let current: [f64; 6] = std::array::from_fn(|j| (model[j] + 12.0) / kt[j]);
+        let s = state(Q0, current, 0.0);
+        // the first cycle barely moves (no fast path from the currents to the command) ...
+        let t1 = c.torque_estimate(&s);
+        let alpha = 1.0 - (-std::f64::consts::TAU * BLEND_HZ * PERIOD).exp();
+        assert!((t1[1] - model[1] - 12.0 * alpha).abs() < 1e-9, "{t1:?}");
+        // ... one time constant (0.8 s at 0.2 Hz) learns 63 %, ten learn it all
+        let tc = (1.0 / (std::f64::consts::TAU * BLEND_HZ) / PERIOD).round() as usize;
+        let mut t = t1;
+        for _ in 1..tc {
+            t = c.torque_estimate(&s);
+        }
+        assert!(((t[1] - model[1]) / 12.0 - 0.632).abs() < 0.01, "{t:?}");
+        for _ in 0..9 * tc {
+            t = c.torque_estimate(&s);
+        }
+        assert!((t[1] - model[1] - 12.0).abs() < 1e-3, "{t:?}");
+        // in motion the correction is frozen: friction torques in the currents never enter
+        c.activity = Activity::Stopping { decel: [1.0; 6] };
+        let rubbing: [f64; 6] = std::array::from_fn(|j| (model[j] + 40.0) / kt[j]);
+        let frozen = c.torque_estimate(&state(Q0, rubbing, 0.0));
+        assert!((frozen[1] - t[1]).abs() < 1e-9, "{frozen:?} vs {t:?}");
     }
 
     #[test]

@@ -10,7 +10,9 @@
 //!   payloads included, which matters because calibration identifies the springs from
 //!   measured torques but never the masses; [`TorqueSource::Model`] uses the model's gravity
 //!   plus the configured payload at the link setpoint (noise-free, exact only when the
-//!   model's bodies and the payload are right).
+//!   model's bodies and the payload are right); [`TorqueSource::Blended`] adds to the model's
+//!   a correction learnt from the measured torques at rest and frozen in motion (friction and
+//!   rotor torques never enter it; no fast feedback through the spring).
 //! - **Compensation**: the motor target that puts the *link* at the setpoint,
 //!   `q_motor = q_link + δ(τ) + e(q_motor) + (b/2)·dir` ([`Model::compensate`]: springs,
 //!   and the transmission error, eccentricity and backlash `pa10 discover` may add; `dir` is
@@ -24,7 +26,7 @@
 use std::sync::Arc;
 
 use super::plan::{Move, MoveError, Setpoint, Trajectory, TrajectoryPoint};
-use super::vocab::{Limits, TorqueSource};
+use super::vocab::{BLEND_HZ, Limits, TorqueSource};
 
 use crate::model::{ExternalLoad, Model, NO_DIRECTION, Torques};
 use crate::record::Mode;
@@ -43,6 +45,7 @@ pub struct Controller {
     p: LoopParams,
     setpoint: Setpoint,
     activity: Activity,
+    /// `measured`: the filtered measured torques; `blended`: the learnt correction (N·m).
     tau_filtered: [f64; 6],
     /// Direction each joint last moved in (−1, 0, +1): the side its backlash is taken up on.
     direction: [f64; 6],
