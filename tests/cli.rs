@@ -369,6 +369,24 @@ fn sim_measure_then_calibrate_end_to_end() {
         .status
         .success()
     );
+    // torques from the model's statics (for a daemon on `torque_source: model`): the
+    // campaign's truth carries a 2.4 kg tooling the nominal bodies lack; the springs absorb it
+    let j = stdout_json(&pa10(&[
+        "calibrate",
+        "--data",
+        &format!("{d}/cal.csv"),
+        "--model-torques",
+        "--out",
+        dir.join("model-torques.yaml").to_str().unwrap(),
+        "--json",
+        "--starts",
+        "1",
+    ]));
+    for load in ["0", "22", "44"] {
+        let a = j["after"][load]["mean_mm"].as_f64().unwrap();
+        eprintln!("--model-torques: {load} N after {a} mm");
+        assert!(a < 0.5, "{load}: after {a} mm with the model's torques");
+    }
     // the text report
     let o = pa10(&[
         "calibrate",

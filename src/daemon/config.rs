@@ -637,6 +637,31 @@ mod tests {
     }
 
     #[test]
+    fn every_torque_source_parses_and_a_wrong_one_is_named() {
+        let y = sim_yaml();
+        for (name, want) in [
+            ("measured", TorqueSource::Measured),
+            ("model", TorqueSource::Model),
+            ("blended", TorqueSource::Blended),
+        ] {
+            let text = y.replace("torque_source: measured", &format!("torque_source: {name}"));
+            let s = Config::parse(&text, "t.yaml")
+                .unwrap()
+                .validate(&root())
+                .unwrap();
+            assert_eq!(s.control.torque_source, want);
+        }
+        let e = match Config::parse(
+            &y.replace("torque_source: measured", "torque_source: guess"),
+            "t.yaml",
+        ) {
+            Ok(_) => panic!("accepted torque_source: guess"),
+            Err(e) => e.to_string(),
+        };
+        assert!(e.contains("guess") && e.contains("blended"), "{e}");
+    }
+
+    #[test]
     fn every_error_names_its_key() {
         let y = sim_yaml();
         assert!(

@@ -65,6 +65,12 @@ pub struct CalibrateArgs {
     /// Motor current → joint torque constants, N·m/A, six comma-separated (for `i1..i6` data).
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     torque_constants: Option<Vec<f64>>,
+    /// Joint torques from the start model's statics (its bodies and each row's hung load at
+    /// the row's resolver angles) instead of the data's torque or current columns: for a daemon
+    /// that runs `torque_source: model`, so the springs are identified on the torques it will
+    /// use and the currents' friction never enters the fit (docs/judge.md).
+    #[arg(long)]
+    model_torques: bool,
     /// Write residual plots (SVG) into this directory.
     #[arg(long, value_name = "DIR")]
     report: Option<PathBuf>,
@@ -92,9 +98,13 @@ pub(crate) fn torque_constants(v: &Option<Vec<f64>>) -> Result<Option<[f64; 6]>>
 /// `pa10 calibrate`.
 pub fn calibrate(a: &CalibrateArgs) -> Result<()> {
     let model = a.model.load()?;
-    let data = load(&a.data)?;
+    let mut data = load(&a.data)?;
     let lines = a.base_seed.as_deref().map(load).transpose()?;
-    let val = a.validate.as_deref().map(load).transpose()?;
+    let mut val = a.validate.as_deref().map(load).transpose()?;
+    if a.model_torques {
+        data = data.with_model_torques(&model);
+        val = val.map(|v| v.with_model_torques(&model));
+    }
     let inner_configs = match a.inner_configs.as_deref() {
         None => None,
         Some("all") => {
