@@ -444,6 +444,77 @@ fn sim_measure_then_calibrate_end_to_end() {
 }
 
 #[test]
+fn plan_writes_a_pose_list_collect_reads_and_refuses_bad_settings() {
+    let dir = std::env::temp_dir().join(format!("pa10-plan-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("poses.csv");
+    let j = stdout_json(&pa10(&[
+        "plan",
+        "--box",
+        "0.45,-0.2,-0.05,0.70,0.2,0.25",
+        "--configs",
+        "8",
+        "--loads",
+        "0,44",
+        "--candidates",
+        "300",
+        "--table-z",
+        "-0.3",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]));
+    let poses =
+        pa10::calib::collect::parse_poses(&std::fs::read_to_string(&out).unwrap(), "p").unwrap();
+    assert_eq!(poses.len(), 16, "8 configurations × 2 loads");
+    // every planned pose puts the tool in the box, above the table
+    let tool = pa10::model::frame_from_pose([0.0, 0.0, 0.35], [1.0, 0.0, 0.0, 0.0]);
+    let m = pa10::model::Model::nominal().with_tool(&tool).unwrap();
+    for p in &poses {
+        let t = m.fk(&p.q).translation.vector;
+        assert!(
+            (0.45..=0.70).contains(&t.x)
+                && (-0.2..=0.2).contains(&t.y)
+                && (-0.05..=0.25).contains(&t.z),
+            "{p:?}: tool at {t:?}"
+        );
+    }
+    let planned = j["planned"]["predicted_mm"].as_f64().unwrap();
+    let floor = j["planned"]["floor_mm"].as_f64().unwrap();
+    assert!(planned > floor && planned < 2.0 * floor, "{j}");
+    assert!(j["paper"]["configs"] == 27 && j["curve"].as_array().unwrap().len() >= 5);
+    for (args, why) in [
+        (
+            vec!["--box", "0.7,-0.2,-0.05,0.45,0.2,0.25"],
+            "each minimum below its maximum",
+        ),
+        (vec!["--box", "0.45,-0.2,-0.05,0.70,0.2"], "six values"),
+        (
+            vec!["--box", "0.45,-0.2,-0.05,0.70,0.2,0.25", "--configs", "0"],
+            "--configs: 1…200",
+        ),
+        (
+            vec!["--box", "0.45,-0.2,-0.05,0.70,0.2,0.25", "--loads", "0,-5"],
+            "loads",
+        ),
+        (
+            vec!["--box", "5,5,5,6,6,6", "--candidates", "20"],
+            "reachable",
+        ),
+    ] {
+        let fresh = dir.join("never.csv");
+        let mut a = vec!["plan", "--out", fresh.to_str().unwrap()];
+        a.extend(args);
+        let o = pa10(&a);
+        assert_eq!(o.status.code(), Some(1), "{a:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(why), "{a:?}: {err}");
+        assert!(!fresh.exists(), "nothing written on a refusal");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn sim_on_a_missing_can_interface_fails_clearly() {
     let o = pa10(&["sim", "--can", "pa10-no-such-if", "--duration", "0.1"]);
     assert_eq!(o.status.code(), Some(1));

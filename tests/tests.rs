@@ -15,6 +15,7 @@ mod live;
 mod model;
 mod model_file;
 mod pinocchio;
+mod plan;
 mod properties;
 mod record;
 mod servo;

@@ -205,33 +205,48 @@ pub fn parse_instrument(text: &str, origin: &str) -> Result<Vec<InstrumentSample
         .collect()
 }
 
-/// Robot samples as CSV text.
-pub fn robot_csv(samples: &[RobotSample]) -> String {
-    let mut s = String::from("config_id,load_n,q1,q2,q3,q4,q5,q6,i1,i2,i3,i4,i5,i6\n");
-    for r in samples {
-        let nums: Vec<String> = std::iter::once(r.load_n)
-            .chain(r.q)
-            .chain(r.current)
-            .map(|v| format!("{v:?}"))
-            .collect();
-        s.push_str(&format!("{},{}\n", r.config_id, nums.join(",")));
+/// CSV text: `header`, then per row its id and numbers (full precision).
+fn csv<'a>(header: &str, rows: impl Iterator<Item = (&'a str, Vec<f64>)>) -> String {
+    let mut s = String::from(header);
+    for (id, nums) in rows {
+        let nums: Vec<String> = nums.iter().map(|v| format!("{v:?}")).collect();
+        s.push_str(&format!("{id},{}\n", nums.join(",")));
     }
     s
 }
 
+/// A pose list as CSV text (what [`parse_poses`] reads).
+pub fn poses_csv(targets: &[PoseTarget]) -> String {
+    let rows = targets.iter().map(|t| {
+        let nums = std::iter::once(t.load_n).chain(t.q).collect();
+        (t.config_id.as_str(), nums)
+    });
+    csv("config_id,load_n,q1,q2,q3,q4,q5,q6\n", rows)
+}
+
+/// Robot samples as CSV text.
+pub fn robot_csv(samples: &[RobotSample]) -> String {
+    let rows = samples.iter().map(|r| {
+        let nums = std::iter::once(r.load_n)
+            .chain(r.q)
+            .chain(r.current)
+            .collect();
+        (r.config_id.as_str(), nums)
+    });
+    csv(
+        "config_id,load_n,q1,q2,q3,q4,q5,q6,i1,i2,i3,i4,i5,i6\n",
+        rows,
+    )
+}
+
 /// Instrument samples as CSV text.
 pub fn instrument_csv(samples: &[InstrumentSample]) -> String {
-    let mut s = String::from("config_id,load_n,x,y,z,qw,qx,qy,qz\n");
-    for m in samples {
+    let rows = samples.iter().map(|m| {
         let (p, q) = pose_parts(&m.pose);
-        let nums: Vec<String> = std::iter::once(m.load_n)
-            .chain(p)
-            .chain(q)
-            .map(|v| format!("{v:?}"))
-            .collect();
-        s.push_str(&format!("{},{}\n", m.config_id, nums.join(",")));
-    }
-    s
+        let nums = std::iter::once(m.load_n).chain(p).chain(q).collect();
+        (m.config_id.as_str(), nums)
+    });
+    csv("config_id,load_n,x,y,z,qw,qx,qy,qz\n", rows)
 }
 
 /// Pairs the k-th robot sample of each (pose id, load) with the k-th instrument sample of
@@ -311,6 +326,12 @@ mod tests {
         );
         // round trip through text
         assert_eq!(parse_robot(&robot_csv(&robot), "r2").unwrap(), robot);
+        let poses = vec![PoseTarget {
+            config_id: "p01".into(),
+            load_n: 22.0,
+            q: [0.1, -0.2, 1.3, 0.0, 0.9, 1e-17],
+        }];
+        assert_eq!(parse_poses(&poses_csv(&poses), "p").unwrap(), poses);
         assert_eq!(
             parse_instrument(&instrument_csv(&inst), "i2")
                 .unwrap()

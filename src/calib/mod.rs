@@ -2,13 +2,15 @@
 //! identification of the flexible geometric model — `dataset` (the CSV and sidecar),
 //! `base` (the inner level), `fit` (the outer level and its stages), `weights` (how rows are
 //! weighed, from the measured noise), `evaluate` (errors per load, floors), `report`,
-//! `collect` (gathering through the daemon).
+//! `collect` (gathering through the daemon), `plan` (which configurations to measure, and the
+//! accuracy they will give).
 
 pub mod base;
 pub mod collect;
 pub mod dataset;
 pub mod evaluate;
 pub mod fit;
+pub mod plan;
 mod prepare;
 pub mod report;
 pub(crate) mod weights;

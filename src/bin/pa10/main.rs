@@ -11,6 +11,7 @@ mod demo_cmd;
 mod discover_cmd;
 mod model_cmds;
 mod motion_cmd;
+mod plan_cmd;
 mod record_cmd;
 mod sim_cmd;
 
@@ -37,6 +38,8 @@ enum Command {
     Accuracy(accuracy_cmd::AccuracyArgs),
     /// Calibrate the flexible geometric model on measurements (two-level LM, seed paper II-C).
     Calibrate(calib_cmd::CalibrateArgs),
+    /// Design a calibration campaign: the poses to measure (D-optimal) and the accuracy they predict.
+    Plan(plan_cmd::PlanArgs),
     /// The whole story on a simulated PA10: gather through pa10d, calibrate, validate.
     Demo(demo_cmd::DemoArgs),
     /// Drive the daemon through a pose list and record a calibration dataset.
@@ -132,6 +135,7 @@ fn main() -> ExitCode {
         Command::Urdf(a) => model_cmds::urdf(&a),
         Command::Accuracy(a) => accuracy_cmd::accuracy(&a),
         Command::Calibrate(a) => calib_cmd::calibrate(&a),
+        Command::Plan(a) => plan_cmd::run(&a),
         Command::Discover(a) => discover_cmd::run(&a),
         Command::Demo(a) => demo_cmd::run(&a),
         Command::Collect(c) => collect_cmd::run(&c),

@@ -1,0 +1,290 @@
+//! `pa10 plan`: a calibration campaign designed for the model to be identified — the pose list
+//! `pa10 collect run` takes, chosen D-optimally among reachable candidates in the instrument's
+//! volume, with the accuracy it predicts beside the paper's 27 poses (`pa10::calib::plan`).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail, ensure};
+use clap::Args;
+use pa10::calib::collect::{PoseTarget, poses_csv};
+use pa10::calib::plan::{
+    Information, PlanNoise, check_loads, check_noise, design_log_det, design_model, information,
+    predicted_error, prior, select,
+};
+use pa10::model::{Frame, Model, frame_from_pose};
+use pa10::sim::experiment::{grid_poses, random_pose};
+use rand::SeedableRng;
+use rand_pcg::Pcg64;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::model_cmds::ModelArg;
+
+/// Arguments of `pa10 plan`.
+#[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct PlanArgs {
+    #[command(flatten)]
+    model: ModelArg,
+    /// The instrument's measuring volume for the tool point: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (m,
+    /// robot base frame).
+    #[arg(long = "box", value_delimiter = ',', required = true)]
+    volume: Vec<f64>,
+    /// Configurations to measure (each at every load).
+    #[arg(long, default_value_t = 12)]
+    configs: usize,
+    /// Loads hung at the tool at each configuration, N, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "0,22,44")]
+    loads: Vec<f64>,
+    /// Flange → tool: X Y Z (m) QW QX QY QZ (unit quaternion), as `pa10 tool` takes it.
+    #[arg(long, num_args = 7, value_names = ["X", "Y", "Z", "QW", "QX", "QY", "QZ"])]
+    tool: Option<Vec<f64>>,
+    /// Candidate configurations to choose from.
+    #[arg(long, default_value_t = 1500)]
+    candidates: usize,
+    /// Keep every joint at least this far inside its limits, rad.
+    #[arg(long, default_value_t = 0.1)]
+    joint_margin: f64,
+    /// A table plane: every joint origin and the tool stay above this height (m, base frame).
+    #[arg(long, value_name = "Z")]
+    table_z: Option<f64>,
+    /// Instrument samples per configuration and load.
+    #[arg(long, default_value_t = 10)]
+    repeats: usize,
+    /// Seed of the candidates.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Where to write the pose list (`config_id,load_n,q1..q6`, link-side rad).
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Print one JSON object instead of the tables.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One design's figures.
+#[derive(Debug, Serialize)]
+struct Figures {
+    configs: usize,
+    /// `log det M` (prior included), and per parameter (36 columns).
+    log_det: f64,
+    log_det_per_param: f64,
+    /// Predicted mean position error after calibration at the validation configurations
+    /// (0/45/90 N), mm, and the resolver floor there.
+    predicted_mm: f64,
+    floor_mm: f64,
+}
+
+#[derive(Debug, Serialize)]
+struct Outcome {
+    planned: Figures,
+    /// The paper's 27 poses (3 × 3 × 3 grid) at the same loads.
+    paper: Figures,
+    /// Predicted mean error (mm) of the best design of each size: "how many do I need?"
+    curve: Vec<(usize, f64)>,
+    candidates: usize,
+    validation_configs: usize,
+    out: String,
+}
+
+const VALIDATION_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
+
+/// `pa10 plan`.
+pub fn run(a: &PlanArgs) -> Result<()> {
+    let [x0, y0, z0, x1, y1, z1] = <[f64; 6]>::try_from(a.volume.as_slice())
+        .map_err(|_| anyhow::anyhow!("--box takes six values, got {}", a.volume.len()))?;
+    ensure!(
+        a.volume.iter().all(|v| v.is_finite()) && x0 < x1 && y0 < y1 && z0 < z1,
+        "--box: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX in metres with each minimum below its maximum, got {:?}",
+        a.volume
+    );
+    ensure!(
+        (1..=200).contains(&a.configs),
+        "--configs: 1…200, got {}",
+        a.configs
+    );
+    ensure!(
+        (a.configs..=20_000).contains(&a.candidates),
+        "--candidates: --configs ({})…20000, got {}",
+        a.configs,
+        a.candidates
+    );
+    ensure!(
+        a.joint_margin.is_finite() && (0.0..=0.5).contains(&a.joint_margin),
+        "--joint-margin: 0…0.5 rad, got {}",
+        a.joint_margin
+    );
+    ensure!(
+        a.table_z.is_none_or(|z| z.is_finite()),
+        "--table-z: a finite height in metres"
+    );
+    check_loads(&a.loads)?;
+    let noise = PlanNoise {
+        repeats: a.repeats,
+        ..PlanNoise::default()
+    };
+    check_noise(&noise)?;
+    let tool = match &a.tool {
+        None => frame_from_pose([0.0, 0.0, 0.35], [1.0, 0.0, 0.0, 0.0]),
+        Some(t) => {
+            let q = [t[3], t[4], t[5], t[6]];
+            let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            ensure!(
+                t.iter().all(|v| v.is_finite()) && (n - 1.0).abs() < 1e-6,
+                "--tool: X Y Z in metres and a unit quaternion QW QX QY QZ; its norm is {n}"
+            );
+            frame_from_pose([t[0], t[1], t[2]], q)
+        }
+    };
+    let model = design_model(&a.model.load()?.with_tool(&tool)?)?;
+
+    // Candidates: tool points uniform in the box, pointing down within ±0.3 rad tilts and
+    // ±0.6 rad of turn (the campaigns' family), solved nearest a reference facing the point.
+    let mut rng = Pcg64::seed_from_u64(a.seed);
+    let mut cands: Vec<[f64; 6]> = Vec::with_capacity(a.candidates);
+    let mut tries = 0usize;
+    while cands.len() < a.candidates {
+        tries += 1;
+        if tries > 50 * a.candidates {
+            bail!(
+                "only {} of {} candidates are reachable in --box {:?} with the tool pointing down (joint margin {} rad{}): widen the box or ask for fewer",
+                cands.len(),
+                a.candidates,
+                a.volume,
+                a.joint_margin,
+                a.table_z
+                    .map(|z| format!(", above z = {z} m"))
+                    .unwrap_or_default()
+            );
+        }
+        let t = random_pose(&mut rng, [x0, y0, z0], [x1, y1, z1]);
+        if let Some(q) = reachable(&model, &t, a.joint_margin, a.table_z) {
+            cands.push(q);
+        }
+    }
+    let infos: Vec<Information> = cands
+        .par_iter()
+        .map(|q| information(&model, q, &a.loads, &noise))
+        .collect();
+    let design = select(&infos, a.configs, 10)?;
+    // validation: other candidates (every one the design did not take, up to 60)
+    let val: Vec<[f64; 6]> = (0..cands.len())
+        .filter(|i| !design.chosen.contains(i))
+        .step_by((cands.len() / 60).max(1))
+        .take(60)
+        .map(|i| cands[i])
+        .collect();
+    let figures = |m: &Information, n: usize| -> Result<Figures> {
+        let (e, floor) = predicted_error(&model, m, &val, &VALIDATION_LOADS, &noise)?;
+        let ld = pa10::calib::plan::log_det(m);
+        Ok(Figures {
+            configs: n,
+            log_det: ld,
+            log_det_per_param: ld / pa10::calib::plan::DESIGN_COLS as f64,
+            predicted_mm: e * 1e3,
+            floor_mm: floor * 1e3,
+        })
+    };
+    let sum = |ids: &[usize]| ids.iter().fold(prior(), |m, &i| m + infos[i]);
+    let planned = figures(&sum(&design.chosen), a.configs)?;
+
+    // the paper's 27 poses, solved as the demo solves them (nearest the previous one)
+    let mut reference = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
+    let mut paper_infos = Vec::new();
+    for (id, target) in grid_poses() {
+        let q = model
+            .ik_nearest(&target, &reference)
+            .map_err(|e| anyhow::anyhow!("the paper's pose {id}: {e}"))?;
+        reference = q;
+        paper_infos.push(information(&model, &q, &a.loads, &noise));
+    }
+    let paper_m = paper_infos.iter().fold(prior(), |m, i| m + i);
+    let paper = figures(&paper_m, paper_infos.len())?;
+    debug_assert!((paper.log_det - design_log_det(&paper_infos)).abs() < 1e-9);
+
+    let mut curve = Vec::new();
+    for n in [4, 6, 8, 10, 12, 16, 20, 27, 36, 48] {
+        if n <= cands.len() {
+            let d = select(&infos, n, 2)?;
+            curve.push((n, figures(&sum(&d.chosen), n)?.predicted_mm));
+        }
+    }
+
+    let targets: Vec<PoseTarget> = design
+        .chosen
+        .iter()
+        .enumerate()
+        .flat_map(|(k, &i)| {
+            let q = cands[i];
+            a.loads.iter().map(move |&load_n| PoseTarget {
+                config_id: format!("p{:02}", k + 1),
+                load_n,
+                q,
+            })
+        })
+        .collect();
+    std::fs::write(&a.out, poses_csv(&targets))
+        .with_context(|| format!("writing {}", a.out.display()))?;
+    let out = Outcome {
+        planned,
+        paper,
+        curve,
+        candidates: cands.len(),
+        validation_configs: val.len(),
+        out: a.out.display().to_string(),
+    };
+    if a.json {
+        println!("{}", serde_json::to_string(&out)?);
+    } else {
+        print(&out);
+    }
+    Ok(())
+}
+
+/// The link angles that put `model`'s tool at `target`, nearest a reference facing it, when
+/// every joint is `margin` inside its limits and (with a table) every joint origin and the
+/// tool are above `table_z`.
+fn reachable(model: &Model, target: &Frame, margin: f64, table_z: Option<f64>) -> Option<[f64; 6]> {
+    let p = target.translation.vector;
+    let reference = [p.y.atan2(p.x), 0.3, 1.6, 0.0, 1.1, 0.0];
+    let q = model.ik_nearest(target, &reference).ok()?;
+    let lim = model.limits();
+    if (0..6).any(|j| q[j] < lim.lower[j] + margin || q[j] > lim.upper[j] - margin) {
+        return None;
+    }
+    if let Some(z) = table_z {
+        let frames = model.frames(&q);
+        if frames.iter().skip(1).any(|f| f.translation.z <= z) || model.fk(&q).translation.z <= z {
+            return None;
+        }
+    }
+    Some(q)
+}
+
+fn print(o: &Outcome) {
+    println!(
+        "pa10 plan: {} configurations chosen D-optimally among {} reachable candidates; pose list in {}",
+        o.planned.configs, o.candidates, o.out
+    );
+    println!();
+    println!(
+        "| design | configurations | log det M (per parameter) | predicted mean error after calibration [mm] | resolver floor [mm] |"
+    );
+    println!("|---|---|---|---|---|");
+    for (name, f) in [("planned", &o.planned), ("the paper's 27 poses", &o.paper)] {
+        println!(
+            "| {name} | {} | {:.1} ({:.2}) | {:.3} | {:.3} |",
+            f.configs, f.log_det, f.log_det_per_param, f.predicted_mm, f.floor_mm
+        );
+    }
+    println!(
+        "\nPredicted at {} other reachable configurations × 0/45/90 N (linearised: the parameters' covariance from the design, the resolvers' floor added).",
+        o.validation_configs
+    );
+    println!("\nHow many configurations: the best design of each size");
+    println!("| configurations | predicted mean error [mm] |");
+    println!("|---|---|");
+    for (n, e) in &o.curve {
+        println!("| {n} | {e:.3} |");
+    }
+}
