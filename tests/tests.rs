@@ -11,6 +11,7 @@ mod dbc;
 mod discover;
 mod hostile;
 mod independent;
+mod iso9283;
 mod live;
 mod model;
 mod model_file;

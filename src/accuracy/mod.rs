@@ -15,6 +15,7 @@
 //! come from a histogram with 16 384 bins over `[0, 12·rms_lin)` of the plane (resolution
 //! ≈ 0.07 % of the mean); mean, standard deviation and maximum are exact.
 
+pub mod iso9283;
 pub mod kernel;
 pub mod linear;
 

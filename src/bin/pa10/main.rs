@@ -9,6 +9,7 @@ mod client_cmd;
 mod collect_cmd;
 mod demo_cmd;
 mod discover_cmd;
+mod iso_cmd;
 mod model_cmds;
 mod motion_cmd;
 mod plan_cmd;
@@ -40,6 +41,9 @@ enum Command {
     Calibrate(calib_cmd::CalibrateArgs),
     /// Design a calibration campaign: the poses to measure (D-optimal) and the accuracy they predict.
     Plan(plan_cmd::PlanArgs),
+    /// ISO 9283 pose accuracy and repeatability: the test poses of a cube, then AP/RP per pose.
+    #[command(subcommand)]
+    Iso9283(iso_cmd::IsoCmd),
     /// The whole story on a simulated PA10: gather through pa10d, calibrate, validate.
     Demo(demo_cmd::DemoArgs),
     /// Drive the daemon through a pose list and record a calibration dataset.
@@ -136,6 +140,7 @@ fn main() -> ExitCode {
         Command::Accuracy(a) => accuracy_cmd::accuracy(&a),
         Command::Calibrate(a) => calib_cmd::calibrate(&a),
         Command::Plan(a) => plan_cmd::run(&a),
+        Command::Iso9283(c) => iso_cmd::run(&c),
         Command::Discover(a) => discover_cmd::run(&a),
         Command::Demo(a) => demo_cmd::run(&a),
         Command::Collect(c) => collect_cmd::run(&c),
