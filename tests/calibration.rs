@@ -76,6 +76,44 @@ fn calibration_reaches_the_resolver_floor_and_recovers_stiffness() {
             "{load}: {a:?}"
         );
     }
+    // the calibrated model carries its parameters' covariance: the predicted 1σ tool position
+    // uncertainty is the resolvers' floor plus a little, of the order of the validation error,
+    // and it survives the file
+    let m = &out.result.model;
+    let u = m.data().uncertainty.as_ref().expect("covariance written");
+    let klin2 = pa10::model::params::IDX_KLIN;
+    let sd = u.covariance[klin2][klin2].sqrt();
+    assert!((sd / out.result.std_errors[klin2].unwrap() - 1.0).abs() < 1e-9);
+    let q = [0.2, 0.5, 1.4, 0.1, 1.0, 0.3];
+    let tau = m.static_torques(&q, &pa10::model::ExternalLoad::hung(45.0, &m.gravity()));
+    let sigma = m.position_uncertainty(&q, &tau).unwrap() * 1e3;
+    let mut floor_only = m.data().clone();
+    floor_only.uncertainty.as_mut().unwrap().covariance = vec![vec![0.0; 30]; 30];
+    let floor = Model::new(floor_only)
+        .unwrap()
+        .position_uncertainty(&q, &tau)
+        .unwrap()
+        * 1e3;
+    eprintln!("predicted 1σ at q: {sigma:.4} mm (resolver floor alone {floor:.4} mm)");
+
+    assert!(sigma > floor && sigma < 1.5 * floor && floor > 0.1 && floor < 0.5);
+    let path = std::env::temp_dir().join(format!("pa10-cov-{}.yaml", std::process::id()));
+    m.save(&path).unwrap();
+    let back = Model::load(&path).unwrap();
+    std::fs::remove_file(&path).ok();
+    assert_eq!(
+        back.position_uncertainty(&q, &tau),
+        m.position_uncertainty(&q, &tau)
+    );
+    assert!(Model::nominal().position_uncertainty(&q, &tau).is_none());
+    // a broken covariance is refused with its key
+    let mut bad = m.data().clone();
+    bad.uncertainty.as_mut().unwrap().covariance[3][5] += 1.0;
+    let e = Model::new(bad).unwrap_err().to_string();
+    assert!(
+        e.contains("uncertainty.covariance[3][5]") && e.contains("symmetric"),
+        "{e}"
+    );
 }
 
 /// Without the resolver's repeatable error (instrument and torque noise only) the fit sees the

@@ -145,7 +145,9 @@ fn targets(truth_base: &Frame) -> Vec<Frame> {
 }
 
 /// Mean error (mm) of the daemon running `model` at `load_n`, judged by ground truth.
-fn drive(model: &Model, load_n: f64) -> f64 {
+/// Mean position error (mm, judged by the simulator's truth) of `model` in the daemon over the
+/// test targets at `load_n`, and the mean predicted 1σ the daemon's status reported there.
+fn drive(model: &Model, load_n: f64) -> (f64, Option<f64>) {
     let mut ls = lockstep(&format!("drive{}", load_n as u32), model);
     ls.servo.set_load(load_n);
     assert_eq!(
@@ -153,7 +155,7 @@ fn drive(model: &Model, load_n: f64) -> f64 {
         true
     );
     let truth_base = *ls.servo.truth().model.base_from_instrument();
-    let mut sum = 0.0;
+    let (mut sum, mut sigma) = (0.0, Some(0.0));
     let ts = targets(&truth_base);
     for target_inst in &ts {
         let target = model.base_from_instrument() * target_inst;
@@ -165,22 +167,35 @@ fn drive(model: &Model, load_n: f64) -> f64 {
         ls.run_for(0.3); // settle
         let got = truth_base.inverse() * ls.servo.true_tool_pose();
         sum += (got.translation.vector - target_inst.translation.vector).norm() * 1e3;
+        let s = status(&ls)["position_sigma_mm"].as_f64();
+        sigma = sigma.zip(s).map(|(a, b)| a + b);
     }
-    sum / ts.len() as f64
+    let n = ts.len() as f64;
+    (sum / n, sigma.map(|s| s / n))
 }
 
 #[test]
 fn move_pose_through_the_daemon_lands_near_the_floor_where_the_nominal_model_misses() {
     let _busy = busy();
     let (_, calibrated, nominal) = crate::common::calibrated_and_nominal(SEED);
-    let (cal0, cal90, nom90) = (
+    let ((cal0, sigma0), (cal90, sigma90), (nom90, nom_sigma)) = (
         drive(&calibrated, 0.0),
         drive(&calibrated, 90.0),
         drive(&nominal, 90.0),
     );
     eprintln!(
-        "daemon, calibrated: {cal0:.3} mm at 0 N, {cal90:.3} mm at 90 N; nominal: {nom90:.3} mm at 90 N"
+        "daemon, calibrated: {cal0:.3} mm at 0 N, {cal90:.3} mm at 90 N; nominal: {nom90:.3} mm at 90 N; predicted 1σ {sigma0:?} / {sigma90:?} mm"
     );
+    // the status says how accurate the arm is here: a calibrated model's 1σ (3-D rms) is of
+    // the order of what it achieves; a nominal model has no covariance to say it from
+    for (s, e) in [(sigma0, cal0), (sigma90, cal90)] {
+        let s = s.expect("position_sigma_mm with a calibrated model");
+        assert!(
+            s > 0.5 * e && s < 4.0 * e && s < 1.0,
+            "predicted {s} mm vs achieved {e} mm"
+        );
+    }
+    assert_eq!(nom_sigma, None);
     assert!(
         cal0 < 0.45 && cal90 < 0.45,
         "calibrated {cal0} / {cal90} mm"

@@ -653,6 +653,22 @@ pub fn calibrate(
         .clone()
         .ok_or_else(|| CalibError::Failed("final model".into()))?;
     let model = model.with_base_from_instrument(&base::frame_from_psi(&fin.psi))?;
+    // the parameters' covariance in physical units, written into the model (fixed ones zero)
+    let mut full = vec![vec![0.0; PARAM_COUNT]; PARAM_COUNT];
+    for (a, &i) in map.free.iter().enumerate() {
+        for (b, &k) in map.free.iter().enumerate() {
+            full[i][k] = 0.5 * (cov[(a, b)] + cov[(b, a)]) * chain[a] * chain[b];
+        }
+    }
+    let resolver_rad = noise_model
+        .as_ref()
+        .map_or(prior.resolver_rad, |nm| nm.repeatable_rad.value);
+    let mut d = model.data().clone();
+    d.uncertainty = Some(crate::model::ParamCovariance {
+        covariance: full,
+        resolver_rad: resolver_rad.clamp(0.0, 0.0099),
+    });
+    let model = Model::new(d)?;
     Ok(CalibResult {
         model,
         cost,

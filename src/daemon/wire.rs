@@ -303,6 +303,11 @@ pub struct Status {
     pub tool_position: [f64; 3],
     /// Tool orientation of the setpoint, quaternion w, x, y, z.
     pub tool_quaternion: [f64; 4],
+    /// How accurate the arm is here: the tool position's predicted 1σ uncertainty at the
+    /// setpoint (3-D rms), mm — the calibration's parameter covariance ⊕ the resolvers' floor;
+    /// absent for a model without one (nominal).
+    #[serde(default)]
+    pub position_sigma_mm: Option<f64>,
     /// Payload, N.
     pub payload_n: f64,
     /// The payload's centre of mass in the tool frame, m.

@@ -76,10 +76,64 @@ pub struct ModelFile {
     /// the fields above; the others, e.g. thermal expansion, are not compensated at run time).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub discovered: Vec<EffectRecord>,
+    /// How well the calibration determined the 30 parameters (`pa10 calibrate` writes it; the
+    /// daemon reports the tool position uncertainty it implies at the setpoint).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<ParamCovariance>,
+}
+
+/// The identified parameters' covariance and the resolvers' uncertainty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParamCovariance {
+    /// 30 rows of 30 numbers in the parameters' order and physical units (products of m, rad,
+    /// N·m/rad, N·m/rad³; `docs/model.md`); rows and columns of parameters the fit held fixed
+    /// are zero. Symmetric, non-negative diagonal.
+    pub covariance: Vec<Vec<f64>>,
+    /// The resolvers' repeatable error the data showed (1σ per joint, rad): the floor added to
+    /// the calibration's share.
+    pub resolver_rad: f64,
 }
 
 fn all_none(v: &[Option<JointError>; 6]) -> bool {
     v.iter().all(Option::is_none)
+}
+
+impl ParamCovariance {
+    /// Checks the shape and values; the offending key and why.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let n = super::PARAM_COUNT;
+        let key = "uncertainty.covariance".to_string();
+        if self.covariance.len() != n || self.covariance.iter().any(|r| r.len() != n) {
+            return Err((key, format!("must be {n} rows of {n} numbers")));
+        }
+        for (i, row) in self.covariance.iter().enumerate() {
+            for (j, &v) in row.iter().enumerate() {
+                let w = self.covariance[j][i];
+                if !v.is_finite() || (v - w).abs() > 1e-9 * v.abs().max(w.abs()).max(1e-300) {
+                    return Err((
+                        format!("uncertainty.covariance[{i}][{j}]"),
+                        format!(
+                            "must be finite and equal to [{j}][{i}] (symmetric), got {v} and {w}"
+                        ),
+                    ));
+                }
+            }
+            if row[i] < 0.0 {
+                return Err((
+                    format!("uncertainty.covariance[{i}][{i}]"),
+                    format!("a variance must be ≥ 0, got {}", row[i]),
+                ));
+            }
+        }
+        if !(self.resolver_rad.is_finite() && (0.0..0.01).contains(&self.resolver_rad)) {
+            return Err((
+                "uncertainty.resolver_rad".into(),
+                format!("must be within 0…0.01 rad, got {}", self.resolver_rad),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// One effect found by `pa10 discover`, as written into the extended model file.

@@ -180,6 +180,47 @@ impl Model {
     }
 }
 
+impl Model {
+    /// The tool position's 1σ uncertainty (m, 3-D rms: `√trace Σ_p`) at link angles `q` (rad)
+    /// under joint torques `tau` (N·m), from the calibration's parameter covariance
+    /// (`J_X Σ_X J_Xᵀ`) and the resolvers' repeatable error (`σ² J_q J_qᵀ`); `None` for a
+    /// model without one (a nominal model). Relative to the calibrated base frame: δd₁ and δθ₁,
+    /// which a free base frame absorbs exactly (the data fix only their sum with it), are left
+    /// out — their prior is a convention of where the base frame sits, not an error of the arm.
+    pub fn position_uncertainty(&self, q: &[f64; 6], tau: &[f64; 6]) -> Option<f64> {
+        let u = self.data().uncertainty.as_ref()?;
+        let delta = self.deflections(tau);
+        let q_motor: [f64; 6] = std::array::from_fn(|j| q[j] + delta[j]);
+        let jx = self.identification_jacobian(&q_motor, tau);
+        let mut trace = 0.0;
+        for r in 0..3 {
+            // (J Σ Jᵀ)_rr = Σ_ab J_ra Σ_ab J_rb
+            let col = |a: usize| {
+                if a == IDX_D || a == IDX_THETA {
+                    0.0
+                } else {
+                    jx[(r, a)]
+                }
+            };
+            for a in 0..PARAM_COUNT {
+                let ja = col(a);
+                if ja == 0.0 {
+                    continue;
+                }
+                for b in 0..PARAM_COUNT {
+                    trace += ja * u.covariance[a][b] * col(b);
+                }
+            }
+        }
+        let jq = self.jacobian(q);
+        let floor: f64 = (0..3)
+            .map(|r| (0..6).map(|j| jq[(r, j)].powi(2)).sum::<f64>())
+            .sum::<f64>()
+            * u.resolver_rad.powi(2);
+        Some((trace.max(0.0) + floor).sqrt())
+    }
+}
+
 /// Geometric Jacobian of point `p` (base frame) from the DH frames 0…6.
 #[inline]
 pub(crate) fn jacobian_from_frames(f: &[Frame; 7], p: &Vector3<f64>) -> Jacobian {

@@ -450,6 +450,9 @@ fn validate(d: &ModelFile) -> Result<(), ModelError> {
                 .map_err(|(key, reason)| invalid(key, reason))?;
         }
     }
+    if let Some(u) = &d.uncertainty {
+        u.validate().map_err(|(key, reason)| invalid(key, reason))?;
+    }
     frame_from_data("tool", &d.tool)?;
     frame_from_data("base_from_instrument", &d.base_from_instrument)?;
     for (i, g) in d.gravity.iter().enumerate() {

@@ -257,6 +257,7 @@ fn status(state: State, fault: Option<&str>, jitter_us: [f64; 3]) -> Status {
         tau: [0.0; 6],
         tool_position: [0.0; 3],
         tool_quaternion: [1.0, 0.0, 0.0, 0.0],
+        position_sigma_mm: None,
         payload_n: 0.0,
         payload_com: [0.0; 3],
         link: Default::default(),

@@ -113,6 +113,11 @@ impl Core {
             tau: self.ctl.as_ref().map_or([0.0; 6], |c| c.output().tau),
             tool_position: p,
             tool_quaternion: q,
+            position_sigma_mm: self.ctl.as_ref().and_then(|c| {
+                c.model()
+                    .position_uncertainty(&c.setpoint().q, &c.output().tau)
+                    .map(|s| s * 1e3)
+            }),
             payload_n: payload,
             payload_com: self
                 .ctl

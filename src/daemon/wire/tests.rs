@@ -119,6 +119,7 @@ fn a_status() -> Status {
         tau: [1.0; 6],
         tool_position: [0.4, 0.0, 0.6],
         tool_quaternion: [1.0, 0.0, 0.0, 0.0],
+        position_sigma_mm: None,
         payload_n: 44.0,
         payload_com: [0.0; 3],
         link: LinkCounters::default(),
