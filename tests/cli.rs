@@ -369,6 +369,43 @@ fn sim_measure_then_calibrate_end_to_end() {
         .status
         .success()
     );
+    // the calibrated model's predicted uncertainty over a plane; a nominal model has none
+    let map_csv = dir.join("map.csv");
+    let o = pa10(&[
+        "accuracy",
+        "map",
+        "--model",
+        out.to_str().unwrap(),
+        "--z",
+        "0.1",
+        "--step",
+        "0.1",
+        "--out",
+        dir.join("map.svg").to_str().unwrap(),
+        "--csv",
+        map_csv.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let sig: Vec<f64> = std::fs::read_to_string(&map_csv)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
+        .collect();
+    assert!(sig.len() > 20 && sig.iter().all(|s| (0.1..1.0).contains(s)), "{sig:?}");
+    assert!(dir.join("map.svg").exists());
+    let o = pa10(&[
+        "accuracy",
+        "map",
+        "--model",
+        "config/model-nominal.yaml",
+        "--z",
+        "0.1",
+        "--out",
+        dir.join("never.svg").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no `uncertainty:` section"));
     // torques from the model's statics (for a daemon on `torque_source: model`): the
     // campaign's truth carries a 2.4 kg tooling the nominal bodies lack; the springs absorb it
     let j = stdout_json(&pa10(&[

@@ -1,20 +1,23 @@
-//! `pa10 accuracy`: the resolver-uncertainty bound (Monte Carlo and linearised).
+//! `pa10 accuracy`: the resolver-uncertainty bound (Monte Carlo and linearised); `pa10 accuracy
+//! map`: a calibrated model's predicted tool position uncertainty over a plane.
 
 use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use clap::Args;
+use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use nalgebra::{Quaternion, UnitQuaternion};
 use pa10::accuracy::{self, ARCMIN, McConfig, Region};
 
 use crate::model_cmds::ModelArg;
 
-/// Arguments of `pa10 accuracy`.
+/// Arguments of `pa10 accuracy` (without a subcommand: the resolver bound).
 #[derive(Debug, Args)]
-#[command(allow_negative_numbers = true)]
+#[command(allow_negative_numbers = true, args_conflicts_with_subcommands = true)]
 pub struct AccuracyArgs {
+    #[command(subcommand)]
+    sub: Option<AccuracySub>,
     #[command(flatten)]
     model: ModelArg,
     /// Plane heights of the tool point, m (base frame), comma-separated.
@@ -58,6 +61,141 @@ pub struct AccuracyArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     json: bool,
+}
+
+/// `pa10 accuracy` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum AccuracySub {
+    /// A calibrated model's predicted 1σ tool position uncertainty (its covariance ⊕ the
+    /// resolver floor) over a horizontal plane, tool pointing down: CSV and an SVG map.
+    Map(MapArgs),
+}
+
+/// Arguments of `pa10 accuracy map`.
+#[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct MapArgs {
+    /// A calibrated model (with the `uncertainty:` section `pa10 calibrate` writes).
+    #[arg(long, value_name = "FILE")]
+    model: PathBuf,
+    /// Height of the plane of the tool point, m (base frame).
+    #[arg(long)]
+    z: f64,
+    /// Region of the plane, m: XMIN,XMAX,YMIN,YMAX.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "XMIN,XMAX,YMIN,YMAX",
+        default_value = "0.3,0.9,-0.4,0.4"
+    )]
+    region: Vec<f64>,
+    /// Grid step, m.
+    #[arg(long, default_value_t = 0.05)]
+    step: f64,
+    /// Load hung at the tool, N.
+    #[arg(long, default_value_t = 0.0)]
+    load: f64,
+    /// Tool point offset along the flange z axis, m.
+    #[arg(long, default_value_t = 0.35)]
+    tool_offset: f64,
+    /// Write the map (SVG) here.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Write the points (`x,y,z,sigma_mm`) to this CSV file.
+    #[arg(long, value_name = "FILE")]
+    csv: Option<PathBuf>,
+}
+
+fn map(a: &MapArgs) -> Result<()> {
+    let [x0, x1, y0, y1] = a.region.as_slice() else {
+        bail!(
+            "--region takes XMIN,XMAX,YMIN,YMAX (4 values), got {}",
+            a.region.len()
+        );
+    };
+    let (x0, x1, y0, y1) = (*x0, *x1, *y0, *y1);
+    anyhow::ensure!(
+        [x0, x1, y0, y1, a.z].iter().all(|v| v.is_finite()) && x0 < x1 && y0 < y1,
+        "--region: finite XMIN < XMAX, YMIN < YMAX in metres, and a finite --z"
+    );
+    anyhow::ensure!(
+        a.step.is_finite()
+            && a.step >= 0.005
+            && ((x1 - x0) / a.step + 1.0) * ((y1 - y0) / a.step + 1.0) <= 40_000.0,
+        "--step: at least 5 mm and at most 40 000 grid points, got {} m",
+        a.step
+    );
+    anyhow::ensure!(
+        a.load.is_finite() && (0.0..=500.0).contains(&a.load),
+        "--load: 0…500 N, got {}",
+        a.load
+    );
+    anyhow::ensure!(
+        a.tool_offset.is_finite() && a.tool_offset.abs() < 2.0,
+        "--tool-offset: |offset| < 2 m"
+    );
+    let tool = pa10::model::frame_from_pose([0.0, 0.0, a.tool_offset], [1.0, 0.0, 0.0, 0.0]);
+    let model = pa10::model::Model::load(&a.model)
+        .with_context(|| format!("loading model {}", a.model.display()))?
+        .with_tool(&tool)?;
+    if model.data().uncertainty.is_none() {
+        bail!(
+            "{} has no `uncertainty:` section: a model `pa10 calibrate` wrote has one (a nominal model has no covariance to map)",
+            a.model.display()
+        );
+    }
+    let down = accuracy::pointing_down().to_rotation_matrix();
+    let load = pa10::model::ExternalLoad::hung(a.load, &model.gravity());
+    let mut points = Vec::new();
+    let nx = ((x1 - x0) / a.step).floor() as usize;
+    let ny = ((y1 - y0) / a.step).floor() as usize;
+    for i in 0..=nx {
+        for k in 0..=ny {
+            let (x, y) = (x0 + i as f64 * a.step, y0 + k as f64 * a.step);
+            let t = pa10::model::Frame::from_parts(nalgebra::Translation3::new(x, y, a.z), down);
+            let reference = [y.atan2(x), 0.3, 1.6, 0.0, 1.1, 0.0];
+            let Ok(q) = model.ik_nearest(&t, &reference) else {
+                continue;
+            };
+            let tau = model.static_torques(&q, &load);
+            if let Some(s) = model.position_uncertainty(&q, &tau) {
+                points.push((x, y, s * 1e3));
+            }
+        }
+    }
+    if points.is_empty() {
+        bail!(
+            "no point of the region is reachable at z = {} m with the tool pointing down",
+            a.z
+        );
+    }
+    pa10::plot::scatter_heat(
+        &a.out,
+        &format!(
+            "predicted 1σ tool position uncertainty, z = {} m, {} N",
+            a.z, a.load
+        ),
+        &points,
+        "mm",
+    )?;
+    if let Some(p) = &a.csv {
+        let mut text = String::from("x,y,z,sigma_mm\n");
+        for (x, y, s) in &points {
+            text.push_str(&format!("{x},{y},{},{s}\n", a.z));
+        }
+        std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?;
+    }
+    let mut v: Vec<f64> = points.iter().map(|p| p.2).collect();
+    v.sort_by(f64::total_cmp);
+    println!(
+        "{} reachable points: predicted 1σ {:.3} mm (min) / {:.3} mm (median) / {:.3} mm (max); map in {}",
+        v.len(),
+        v[0],
+        v[v.len() / 2],
+        v[v.len() - 1],
+        a.out.display()
+    );
+    Ok(())
 }
 
 fn config(a: &AccuracyArgs) -> Result<McConfig> {
@@ -108,6 +246,9 @@ fn config(a: &AccuracyArgs) -> Result<McConfig> {
 
 /// `pa10 accuracy`.
 pub fn accuracy(a: &AccuracyArgs) -> Result<()> {
+    if let Some(AccuracySub::Map(m)) = &a.sub {
+        return map(m);
+    }
     let model = a.model.load()?;
     let cfg = config(a)?;
     let total = (cfg.planes.len() * cfg.points) as u64;
