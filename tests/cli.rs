@@ -392,7 +392,10 @@ fn sim_measure_then_calibrate_end_to_end() {
         .skip(1)
         .map(|l| l.rsplit(',').next().unwrap().parse().unwrap())
         .collect();
-    assert!(sig.len() > 20 && sig.iter().all(|s| (0.1..1.0).contains(s)), "{sig:?}");
+    assert!(
+        sig.len() > 20 && sig.iter().all(|s| (0.1..1.0).contains(s)),
+        "{sig:?}"
+    );
     assert!(dir.join("map.svg").exists());
     let o = pa10(&[
         "accuracy",

@@ -175,3 +175,123 @@ fn iso_9283_refuses_bad_settings_precisely() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("pose `P9` is not in the plan"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The README's lab workflow on the simulated arm, every step a `pa10` command: plan, collect
+/// (simulated daemon and instrument), merge, calibrate, an ISO 9283 test with the calibrated
+/// model, its report and verdict.
+#[test]
+fn plan_collect_calibrate_iso9283_as_the_readme_says() {
+    let _busy = crate::common::busy_lock();
+    let dir = std::env::temp_dir().join(format!("pa10-lab-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let f = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let config = concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.yaml");
+    let steps: Vec<Vec<String>> = vec![
+        vec![
+            "plan",
+            "--box",
+            "0.45,-0.2,-0.05,0.70,0.2,0.25",
+            "--configs",
+            "10",
+            "--candidates",
+            "400",
+            "--out",
+            &f("poses.csv"),
+        ],
+        vec![
+            "collect",
+            "run",
+            "--simulate",
+            config,
+            "--poses",
+            &f("poses.csv"),
+            "--out",
+            &f("robot.csv"),
+            "--instrument-out",
+            &f("cmm.csv"),
+            "--samples",
+            "2",
+        ],
+        vec![
+            "collect",
+            "merge",
+            "--robot",
+            &f("robot.csv"),
+            "--instrument",
+            &f("cmm.csv"),
+            "--out",
+            &f("cal.csv"),
+        ],
+        vec![
+            "calibrate",
+            "--data",
+            &f("cal.csv"),
+            "--torque-constants",
+            "15,30,15,5,5,2",
+            "--starts",
+            "1",
+            "--out",
+            &f("calibrated.yaml"),
+        ],
+        vec![
+            "iso9283",
+            "plan",
+            "--model",
+            &f("calibrated.yaml"),
+            "--cube",
+            "0.58,0,0.1,0.2",
+            "--cycles",
+            "5",
+            "--load",
+            "44",
+            "--out",
+            &f("iso.csv"),
+        ],
+        vec![
+            "collect",
+            "run",
+            "--simulate",
+            config,
+            "--model",
+            &f("calibrated.yaml"),
+            "--poses",
+            &f("iso.csv"),
+            "--out",
+            &f("iso-robot.csv"),
+            "--instrument-out",
+            &f("iso-cmm.csv"),
+        ],
+    ]
+    .into_iter()
+    .map(|v| v.into_iter().map(String::from).collect())
+    .collect();
+    for s in &steps {
+        let args: Vec<&str> = s.iter().map(String::as_str).collect();
+        let o = pa10(&args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    // the sidecar travelled from the simulated instrument into the dataset
+    assert!(dir.join("cal.meta.yaml").exists());
+    let o = pa10(&[
+        "iso9283",
+        "report",
+        "--model",
+        &f("calibrated.yaml"),
+        "--poses",
+        &f("iso.csv"),
+        "--measured",
+        &f("iso-cmm.csv"),
+        "--limits",
+        "0.5,0.05",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: Value = serde_json::from_slice(&o.stdout).unwrap();
+    eprintln!("{j}");
+    assert_eq!(j["pass"], true, "{j}");
+    std::fs::remove_dir_all(&dir).ok();
+}

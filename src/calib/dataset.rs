@@ -470,6 +470,15 @@ pub fn meta_path(csv: &Path) -> PathBuf {
     csv.with_file_name(format!("{stem}.meta.yaml"))
 }
 
+/// Reads a sidecar (`<stem>.meta.yaml`) on its own, checked as [`Dataset::load`] checks it.
+pub fn load_meta(path: &Path) -> Result<Meta, DatasetError> {
+    let t = std::fs::read_to_string(path).map_err(|source| DatasetError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_meta(&t, path)
+}
+
 fn parse_meta(text: &str, path: &Path) -> Result<Meta, DatasetError> {
     let m: Meta = serde_yaml::from_str(text).map_err(|e| DatasetError::Meta {
         path: path.to_path_buf(),

@@ -12,7 +12,9 @@ use clap::{Args, Subcommand};
 use pa10::calib::collect::{self, RobotSample};
 use pa10::daemon::wire::ApiRequest;
 
-use crate::client_cmd::{Api, Conn, Socket, checked, duration_of, status_of, wait_settled};
+use crate::client_cmd::{
+    Api, Conn, Simulated, Socket, checked, duration_of, status_of, wait_settled,
+};
 
 /// Sends a move and waits until it settles.
 pub fn move_wait(api: &mut dyn Api, req: ApiRequest) -> Result<()> {
@@ -96,6 +98,20 @@ pub struct CollectRunArgs {
     /// means, e.g. a simulator).
     #[arg(long)]
     yes: bool,
+    /// No daemon to connect to: run the daemon's core and the simulated arm of this
+    /// configuration (its `sim` section hides the true robot) in simulated time in this
+    /// process, as `pa10 demo` does; the weights are hung on the simulated arm and
+    /// `--instrument-out` gets the simulated instrument's measurements.
+    #[arg(long, value_name = "CONFIG")]
+    simulate: Option<PathBuf>,
+    /// With `--simulate`: the model the daemon runs instead of the configuration's.
+    #[arg(long, value_name = "FILE", requires = "simulate")]
+    model: Option<PathBuf>,
+    /// With `--simulate`: where to write the simulated instrument's measurement of every
+    /// sample (`config_id,load_n,x,y,z,qw,qx,qy,qz`, instrument frame; the paper's CMM noise)
+    /// and, beside it, its sidecar (`<stem>.meta.yaml`: the tool, the noise) that `merge` carries.
+    #[arg(long, value_name = "FILE", requires = "simulate")]
+    instrument_out: Option<PathBuf>,
 }
 
 /// Arguments of `pa10 collect merge`.
@@ -190,7 +206,12 @@ pub fn run(c: &CollectCmd) -> Result<()> {
                 &read(&a.instrument)?,
                 &a.instrument.display().to_string(),
             )?;
-            let d = collect::merge(&robot, &inst)?;
+            let mut d = collect::merge(&robot, &inst)?;
+            // the instrument file's sidecar (tool, noise), when it has one, is the dataset's
+            let mp = pa10::calib::dataset::meta_path(&a.instrument);
+            if mp.exists() {
+                d.meta = Some(pa10::calib::dataset::load_meta(&mp)?);
+            }
             d.save(&a.out)?;
             println!("wrote {} ({} rows)", a.out.display(), d.rows.len());
             Ok(())
@@ -203,49 +224,118 @@ fn collect_run(a: &CollectRunArgs) -> Result<()> {
         bail!("--samples must be 1…1000, got {}", a.samples);
     }
     let poses = collect::parse_poses(&read(&a.poses)?, &a.poses.display().to_string())?;
-    let mut api = Socket(a.conn.clone());
+    let Some(config) = &a.simulate else {
+        let mut api = Socket(a.conn.clone());
+        let out = drive(&mut api, &poses, a, |_, _| Ok(()), |_| None)?;
+        return write_robot(a, &out.0, poses.len());
+    };
+    let Some(inst_path) = &a.instrument_out else {
+        bail!(
+            "--simulate needs --instrument-out FILE: where the simulated instrument's measurements go"
+        );
+    };
+    let mut settings = pa10::daemon::config::Config::load(config)?;
+    if let Some(m) = &a.model {
+        settings.model = pa10::model::Model::load(m)
+            .with_context(|| format!("loading model {}", m.display()))?;
+    }
+    let mut api = Simulated(pa10::sim::rig::Lockstep::from_config(&settings)?);
+    api.0
+        .run_until_ready(5.0)
+        .map_err(|e| anyhow::anyhow!("the simulated servo controller: {e}"))?;
+    let hang = |api: &mut Simulated, n: f64| {
+        api.0.servo.set_load(n);
+        Ok(())
+    };
+    let (robot, inst) = drive(&mut api, &poses, a, hang, |api| {
+        Some(api.0.servo.observe_tool())
+    })?;
+    write_robot(a, &robot, poses.len())?;
+    let truth = api.0.servo.truth();
+    let meta = pa10::sim::experiment::sidecar(
+        format!(
+            "simulated instrument (pa10 collect run --simulate {})",
+            config.display()
+        ),
+        truth.model.tool(),
+        &truth.noise,
+    );
+    std::fs::write(inst_path, collect::instrument_csv(&inst))
+        .with_context(|| format!("writing {}", inst_path.display()))?;
+    let mp = pa10::calib::dataset::meta_path(inst_path);
+    std::fs::write(&mp, serde_yaml::to_string(&meta)?)
+        .with_context(|| format!("writing {}", mp.display()))?;
+    println!(
+        "wrote {} and its sidecar {} ({} simulated measurements)",
+        inst_path.display(),
+        mp.display(),
+        inst.len()
+    );
+    Ok(())
+}
+
+/// Drives `api` through `poses`: at each new load `hang` it (and tell the daemon), move, wait
+/// until still, take `a.samples` samples; `measure` is the instrument, when there is one here.
+fn drive<A: Api>(
+    api: &mut A,
+    poses: &[collect::PoseTarget],
+    a: &CollectRunArgs,
+    mut hang: impl FnMut(&mut A, f64) -> Result<()>,
+    mut measure: impl FnMut(&mut A) -> Option<pa10::model::Frame>,
+) -> Result<(Vec<RobotSample>, Vec<collect::InstrumentSample>)> {
     let settle = Duration::from_millis(a.settle_ms);
     let mut load = f64::NAN;
-    let mut out: Vec<RobotSample> = Vec::new();
+    let (mut out, mut inst) = (Vec::new(), Vec::new());
     let stdin = std::io::stdin();
     for (k, p) in poses.iter().enumerate() {
         if p.load_n != load {
-            set_payload(&mut api, p.load_n)?;
-            if !a.yes {
+            hang(api, p.load_n)?;
+            set_payload(api, p.load_n)?;
+            if !a.yes && a.simulate.is_none() {
                 eprintln!("hang {} N at the tool, then press Enter", p.load_n);
                 let mut line = String::new();
                 stdin.lock().read_line(&mut line)?;
             }
             load = p.load_n;
         }
-        move_wait(&mut api, ApiRequest::MoveJoints { q: p.q })
+        move_wait(api, ApiRequest::MoveJoints { q: p.q })
             .with_context(|| format!("pose `{}`", p.config_id))?;
-        wait_still(&mut api, settle, settle * 4)?;
+        wait_still(api, settle, settle * 4)?;
         for _ in 0..a.samples {
-            let (q, current) = sample(&mut api)?;
+            let (q, current) = sample(api)?;
             out.push(RobotSample {
                 config_id: p.config_id.clone(),
                 load_n: p.load_n,
                 q,
                 current,
             });
-            eprintln!(
-                "[{}/{}] {} at {} N: measure it with the instrument now",
-                k + 1,
-                poses.len(),
-                p.config_id,
-                p.load_n
-            );
-            std::thread::sleep(Duration::from_millis(50));
+            match measure(api) {
+                Some(pose) => inst.push(collect::InstrumentSample {
+                    config_id: p.config_id.clone(),
+                    load_n: p.load_n,
+                    pose,
+                }),
+                None => eprintln!(
+                    "[{}/{}] {} at {} N: measure it with the instrument now",
+                    k + 1,
+                    poses.len(),
+                    p.config_id,
+                    p.load_n
+                ),
+            }
+            api.pause(Duration::from_millis(50));
         }
     }
-    std::fs::write(&a.out, collect::robot_csv(&out))
+    Ok((out, inst))
+}
+
+fn write_robot(a: &CollectRunArgs, out: &[RobotSample], poses: usize) -> Result<()> {
+    std::fs::write(&a.out, collect::robot_csv(out))
         .with_context(|| format!("writing {}", a.out.display()))?;
     println!(
-        "wrote {} ({} samples of {} poses); merge with the instrument's file: pa10 collect merge",
+        "wrote {} ({} samples of {poses} poses); merge with the instrument's file: pa10 collect merge",
         a.out.display(),
         out.len(),
-        poses.len()
     );
     Ok(())
 }
