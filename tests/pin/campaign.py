@@ -17,7 +17,7 @@ and torque noise; 0, 1 or 2 hidden effects from a pool in the discovery library 
 outside it.
 
     python3 tests/pin/campaign.py --seed 7 --out DIR [--hidden none|spring_j4,scale_j3] \
-        [--family reading|repeatable|both] [--configs N] [--paper] [--detectability]
+        [--family reading|repeatable|both] [--configs N] [--paper] [--detectability] [--poses FILE]
 
 writes DIR/cal.csv, DIR/val.csv (held-out configurations at 0/44/90 N, one measurement
 each), their sidecars (`*.meta.yaml`: tool, noise), DIR/robot.urdf and DIR/truth.json (the
@@ -25,7 +25,9 @@ design, the hidden effects and the validation floor: what the judge scores again
 tool under test never reads it; with `--detectability` also each hidden effect's
 noncentrality on the calibration and held-out sets, `noncentrality()`). `--paper` keeps the design of the seed paper's campaign
 (27 configurations x 0/22/44 N x 10 repeats, a 0.35 m tool) and still draws the robot,
-the instrument and the noise.
+the instrument and the noise. `--poses FILE` measures the configurations and loads of a pose
+list (`pa10 plan --out`) instead of drawn ones, with the design's repeats, everything else the
+seed's (truth.json gives the measuring volume and the tool to plan in: `volume`, `tool_matrix`).
 """
 
 import argparse
@@ -423,7 +425,26 @@ def noncentrality(robot, designs, fam):
     return out
 
 
-def generate(seed, hidden=None, family=None, paper=False, configs=None, detectability=False):
+def read_poses(path):
+    """A pose list (`config_id,load_n,q1..q6`, link-side rad: what `pa10 plan` writes)."""
+    rows = []
+    with open(path) as f:
+        head = f.readline().strip().split(",")
+        if head[:8] != ["config_id", "load_n", "q1", "q2", "q3", "q4", "q5", "q6"]:
+            raise SystemExit(f"{path}: the header must be config_id,load_n,q1..q6")
+        for n, line in enumerate(f, start=2):
+            v = line.strip().split(",")
+            if len(v) < 8:
+                raise SystemExit(f"{path}:{n}: 8 columns expected")
+            q = np.array([float(x) for x in v[2:8]])
+            load = float(v[1])
+            if not (np.all(np.isfinite(q)) and 0.0 <= load <= 500.0):
+                raise SystemExit(f"{path}:{n}: finite angles and a load within 0-500 N")
+            rows.append((v[0], load, q))
+    return rows
+
+
+def generate(seed, hidden=None, family=None, paper=False, configs=None, detectability=False, poses=None):
     rng = np.random.default_rng([seed, 0x9A10])
     if hidden is None:
         k = rng.choice([0, 1, 2], p=[0.34, 0.33, 0.33])
@@ -454,13 +475,13 @@ def generate(seed, hidden=None, family=None, paper=False, configs=None, detectab
     inst, centre, radius = instrument_frame(rng)
     inst_inv = np.linalg.inv(inst)
 
-    def measure(q_cmd, rep, load, tau_true, q_link):
-        reading = q_cmd + fam["reading"] * rng.standard_normal(6)
-        tau_m = tau_true * (1.0 + fam["torque_rel"] * rng.standard_normal(6)) + fam["torque_abs_nm"] * rng.standard_normal(6)
+    def measure(q_cmd, rep, load, tau_true, q_link, r=rng):
+        reading = q_cmd + fam["reading"] * r.standard_normal(6)
+        tau_m = tau_true * (1.0 + fam["torque_rel"] * r.standard_normal(6)) + fam["torque_abs_nm"] * r.standard_normal(6)
         truth = inst_inv @ robot.target(q_link, load)
         pose = truth.copy()
-        pose[:3, :3] = rotvec(np.array(fam["instrument_rad"]) * rng.standard_normal(3)) @ truth[:3, :3]
-        pose[:3, 3] += np.array(fam["instrument_m"]) * rng.standard_normal(3)
+        pose[:3, :3] = rotvec(np.array(fam["instrument_rad"]) * r.standard_normal(3)) @ truth[:3, :3]
+        pose[:3, 3] += np.array(fam["instrument_m"]) * r.standard_normal(3)
         return reading, tau_m, pose
 
     cal = [HEADER]
@@ -473,6 +494,18 @@ def generate(seed, hidden=None, family=None, paper=False, configs=None, detectab
             for _ in range(repeats):
                 r, t, p = measure(q, rep, load, tau, ql)
                 cal.append(csv_row(f"k{c:02d}", load, r, t, p))
+    if poses is not None:
+        # The given configurations replace the drawn ones, measured with their own generator so
+        # that everything else (the robot, the instrument, the validation set) is the seed's.
+        prng = np.random.default_rng([seed, 0x9A11])
+        cal = [HEADER]
+        reps = {}
+        for cid, load, q in poses:
+            rep = reps.setdefault(cid, fam["repeatable"] * prng.standard_normal(6))
+            ql, tau = robot.settle(q - rep, load)
+            for _ in range(repeats):
+                r, t, p = measure(q, rep, load, tau, ql, prng)
+                cal.append(csv_row(cid, load, r, t, p))
     val = [HEADER]
     floor, n = 0.0, 0
     s = math.hypot(fam["reading"], fam["repeatable"])
@@ -511,6 +544,8 @@ def generate(seed, hidden=None, family=None, paper=False, configs=None, detectab
         },
         "hidden": [{"name": h, "in_library": POOL[h][0], **({"noncentrality": lam[h][0], "noncentrality_holdout": lam[h][1]} if h in lam else {}), **robot.hidden[h]} for h in hidden],
         "val_floor_mm": floor / n * 1e3,
+        "volume": {"centre_m": [float(x) for x in centre], "radius_m": float(radius)},
+        "tool_matrix": [[float(x) for x in row] for row in robot.tool],
         "springs": {f"J{j}": list(v) for j, v in robot.springs.items()},
         "beta2_rad": robot.beta2,
     }
@@ -541,7 +576,9 @@ def main():
     ap.add_argument("--paper", action="store_true", help="the seed paper's campaign design")
     ap.add_argument("--configs", type=int, help="number of calibration configurations")
     ap.add_argument("--detectability", action="store_true", help="write each hidden effect's noncentrality (truth.json; a few seconds)")
+    ap.add_argument("--poses", help="measure these configurations (a pose list, config_id,load_n,q1..q6) instead of drawn ones")
     a = ap.parse_args()
+    poses = read_poses(a.poses) if a.poses else None
     hidden = None
     if a.hidden is not None:
         hidden = [] if a.hidden == "none" else a.hidden.split(",")
@@ -550,7 +587,7 @@ def main():
                 sys.exit(f"unknown hidden effect {h!r}; known: {', '.join(sorted(POOL))}")
     for seed in range(a.seed, a.seed + a.count):
         out = a.out if a.count == 1 else os.path.join(a.out, str(seed))
-        write(out, *generate(seed, hidden, a.family, a.paper, a.configs, a.detectability))
+        write(out, *generate(seed, hidden, a.family, a.paper, a.configs, a.detectability, poses))
 
 
 if __name__ == "__main__":

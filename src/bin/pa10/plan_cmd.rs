@@ -27,9 +27,18 @@ pub struct PlanArgs {
     #[command(flatten)]
     model: ModelArg,
     /// The instrument's measuring volume for the tool point: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX (m,
-    /// robot base frame).
-    #[arg(long = "box", value_delimiter = ',', required = true)]
+    /// robot base frame). Negative first values: `--box=-0.7,…`.
+    #[arg(
+        long = "box",
+        value_delimiter = ',',
+        required_unless_present = "sphere",
+        conflicts_with = "sphere"
+    )]
     volume: Vec<f64>,
+    /// Or a spherical measuring volume: CX,CY,CZ,RADIUS (m, robot base frame; a laser
+    /// tracker's or a camera's working volume).
+    #[arg(long, value_delimiter = ',')]
+    sphere: Vec<f64>,
     /// Configurations to measure (each at every load).
     #[arg(long, default_value_t = 12)]
     configs: usize,
@@ -39,6 +48,11 @@ pub struct PlanArgs {
     /// Flange → tool: X Y Z (m) QW QX QY QZ (unit quaternion), as `pa10 tool` takes it.
     #[arg(long, num_args = 7, value_names = ["X", "Y", "Z", "QW", "QX", "QY", "QZ"])]
     tool: Option<Vec<f64>>,
+    /// Candidate orientations: `any` (uniform joint angles whose tool point is in the box:
+    /// every orientation the arm can take there) or `down` (the tool pointing down within
+    /// ±0.3 rad tilts and ±0.6 rad of turn, as the paper's grid).
+    #[arg(long, value_enum, default_value_t = Orientations::Any)]
+    orientations: Orientations,
     /// Candidate configurations to choose from.
     #[arg(long, default_value_t = 1500)]
     candidates: usize,
@@ -62,6 +76,15 @@ pub struct PlanArgs {
     json: bool,
 }
 
+/// Which tool orientations the candidates take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Orientations {
+    /// Any the arm can take with the tool point in the box.
+    Any,
+    /// Pointing down within ±0.3 rad tilts.
+    Down,
+}
+
 /// One design's figures.
 #[derive(Debug, Serialize)]
 struct Figures {
@@ -78,8 +101,10 @@ struct Figures {
 #[derive(Debug, Serialize)]
 struct Outcome {
     planned: Figures,
-    /// The paper's 27 poses (3 × 3 × 3 grid) at the same loads.
-    paper: Figures,
+    /// The paper's 27 poses (3 × 3 × 3 grid) at the same loads (absent when out of reach).
+    paper: Option<Figures>,
+    /// Why the paper's poses could not be compared, if so.
+    paper_unreachable: Option<String>,
     /// Predicted mean error (mm) of the best design of each size: "how many do I need?"
     curve: Vec<(usize, f64)>,
     candidates: usize,
@@ -91,13 +116,34 @@ const VALIDATION_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
 
 /// `pa10 plan`.
 pub fn run(a: &PlanArgs) -> Result<()> {
-    let [x0, y0, z0, x1, y1, z1] = <[f64; 6]>::try_from(a.volume.as_slice())
-        .map_err(|_| anyhow::anyhow!("--box takes six values, got {}", a.volume.len()))?;
-    ensure!(
-        a.volume.iter().all(|v| v.is_finite()) && x0 < x1 && y0 < y1 && z0 < z1,
-        "--box: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX in metres with each minimum below its maximum, got {:?}",
-        a.volume
-    );
+    // the volume: a box, or a sphere (sampled in its bounding box, kept inside it)
+    let (bounds, ball) = if a.sphere.is_empty() {
+        let b = <[f64; 6]>::try_from(a.volume.as_slice())
+            .map_err(|_| anyhow::anyhow!("--box takes six values, got {}", a.volume.len()))?;
+        ensure!(
+            b.iter().all(|v| v.is_finite()) && b[0] < b[3] && b[1] < b[4] && b[2] < b[5],
+            "--box: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX in metres with each minimum below its maximum, got {:?}",
+            a.volume
+        );
+        (b, None)
+    } else {
+        let [cx, cy, cz, r] = <[f64; 4]>::try_from(a.sphere.as_slice()).map_err(|_| {
+            anyhow::anyhow!(
+                "--sphere takes CX,CY,CZ,RADIUS (4 values), got {}",
+                a.sphere.len()
+            )
+        })?;
+        ensure!(
+            [cx, cy, cz, r].iter().all(|v| v.is_finite()) && r > 0.0,
+            "--sphere: a finite centre and a positive radius in metres, got {:?}",
+            a.sphere
+        );
+        (
+            [cx - r, cy - r, cz - r, cx + r, cy + r, cz + r],
+            Some((nalgebra::Vector3::new(cx, cy, cz), r)),
+        )
+    };
+    let [x0, y0, z0, x1, y1, z1] = bounds;
     ensure!(
         (1..=200).contains(&a.configs),
         "--configs: 1…200, got {}",
@@ -138,29 +184,64 @@ pub fn run(a: &PlanArgs) -> Result<()> {
     };
     let model = design_model(&a.model.load()?.with_tool(&tool)?)?;
 
-    // Candidates: tool points uniform in the box, pointing down within ±0.3 rad tilts and
-    // ±0.6 rad of turn (the campaigns' family), solved nearest a reference facing the point.
+    // Candidates: `any` — joint angles uniform within the limits less the margin, kept when
+    // the tool point is in the box; `down` — tool points uniform in the box, pointing down
+    // within ±0.3 rad tilts and ±0.6 rad of turn (the campaigns' family), solved nearest a
+    // reference facing the point.
     let mut rng = Pcg64::seed_from_u64(a.seed);
     let mut cands: Vec<[f64; 6]> = Vec::with_capacity(a.candidates);
     let mut tries = 0usize;
+    let budget = match a.orientations {
+        Orientations::Any => 2000 * a.candidates,
+        Orientations::Down => 50 * a.candidates,
+    };
+    let lim = model.limits().clone();
+    let inside = |p: &nalgebra::Vector3<f64>| {
+        (x0..=x1).contains(&p.x)
+            && (y0..=y1).contains(&p.y)
+            && (z0..=z1).contains(&p.z)
+            && ball.is_none_or(|(c, r)| (p - c).norm() <= r)
+    };
     while cands.len() < a.candidates {
         tries += 1;
-        if tries > 50 * a.candidates {
+        if tries > budget {
             bail!(
-                "only {} of {} candidates are reachable in --box {:?} with the tool pointing down (joint margin {} rad{}): widen the box or ask for fewer",
+                "only {} of {} candidates are reachable in the volume {:?} (orientations {:?}, joint margin {} rad{}): widen it or ask for fewer",
                 cands.len(),
                 a.candidates,
-                a.volume,
+                if a.sphere.is_empty() {
+                    &a.volume
+                } else {
+                    &a.sphere
+                },
+                a.orientations,
                 a.joint_margin,
                 a.table_z
                     .map(|z| format!(", above z = {z} m"))
                     .unwrap_or_default()
             );
         }
-        let t = random_pose(&mut rng, [x0, y0, z0], [x1, y1, z1]);
-        if let Some(q) = reachable(&model, &t, a.joint_margin, a.table_z) {
-            cands.push(q);
-        }
+        let q = match a.orientations {
+            Orientations::Down => {
+                let t = random_pose(&mut rng, [x0, y0, z0], [x1, y1, z1]);
+                if inside(&t.translation.vector) {
+                    reachable(&model, &t, a.joint_margin, a.table_z)
+                } else {
+                    None
+                }
+            }
+            Orientations::Any => {
+                use rand::RngExt;
+                let q: [f64; 6] = std::array::from_fn(|j| {
+                    rng.random_range(
+                        (lim.lower[j] + a.joint_margin)..(lim.upper[j] - a.joint_margin),
+                    )
+                });
+                let p = model.fk(&q).translation.vector;
+                (inside(&p) && above(&model, &q, a.table_z)).then_some(q)
+            }
+        };
+        cands.extend(q);
     }
     let infos: Vec<Information> = cands
         .par_iter()
@@ -188,19 +269,35 @@ pub fn run(a: &PlanArgs) -> Result<()> {
     let sum = |ids: &[usize]| ids.iter().fold(prior(), |m, &i| m + infos[i]);
     let planned = figures(&sum(&design.chosen), a.configs)?;
 
-    // the paper's 27 poses, solved as the demo solves them (nearest the previous one)
+    // the paper's 27 poses, solved as the demo solves them (nearest the previous one); with
+    // some tools some are out of reach, and the comparison says so
     let mut reference = [0.0, 0.4, 1.6, 0.0, 1.1, 0.0];
     let mut paper_infos = Vec::new();
+    let mut paper_unreachable = None;
     for (id, target) in grid_poses() {
-        let q = model
-            .ik_nearest(&target, &reference)
-            .map_err(|e| anyhow::anyhow!("the paper's pose {id}: {e}"))?;
-        reference = q;
-        paper_infos.push(information(&model, &q, &a.loads, &noise));
+        match model.ik_nearest(&target, &reference) {
+            Ok(q) => {
+                reference = q;
+                paper_infos.push(information(&model, &q, &a.loads, &noise));
+            }
+            Err(e) => {
+                paper_unreachable = Some(format!(
+                    "the paper's pose {id} is out of reach with this tool: {e}"
+                ));
+                break;
+            }
+        }
     }
-    let paper_m = paper_infos.iter().fold(prior(), |m, i| m + i);
-    let paper = figures(&paper_m, paper_infos.len())?;
-    debug_assert!((paper.log_det - design_log_det(&paper_infos)).abs() < 1e-9);
+    let paper = match paper_unreachable {
+        None => {
+            let paper_m = paper_infos.iter().fold(prior(), |m, i| m + i);
+            debug_assert!(
+                (pa10::calib::plan::log_det(&paper_m) - design_log_det(&paper_infos)).abs() < 1e-9
+            );
+            Some(figures(&paper_m, paper_infos.len())?)
+        }
+        Some(_) => None,
+    };
 
     let mut curve = Vec::new();
     for n in [4, 6, 8, 10, 12, 16, 20, 27, 36, 48] {
@@ -228,6 +325,7 @@ pub fn run(a: &PlanArgs) -> Result<()> {
     let out = Outcome {
         planned,
         paper,
+        paper_unreachable,
         curve,
         candidates: cands.len(),
         validation_configs: val.len(),
@@ -252,13 +350,16 @@ fn reachable(model: &Model, target: &Frame, margin: f64, table_z: Option<f64>) -
     if (0..6).any(|j| q[j] < lim.lower[j] + margin || q[j] > lim.upper[j] - margin) {
         return None;
     }
-    if let Some(z) = table_z {
-        let frames = model.frames(&q);
-        if frames.iter().skip(1).any(|f| f.translation.z <= z) || model.fk(&q).translation.z <= z {
-            return None;
-        }
-    }
-    Some(q)
+    above(model, &q, table_z).then_some(q)
+}
+
+/// Whether every joint origin and the tool are above the table (always, without one).
+fn above(model: &Model, q: &[f64; 6], table_z: Option<f64>) -> bool {
+    let Some(z) = table_z else {
+        return true;
+    };
+    let frames = model.frames(q);
+    frames.iter().skip(1).all(|f| f.translation.z > z) && model.fk(q).translation.z > z
 }
 
 fn print(o: &Outcome) {
@@ -271,11 +372,16 @@ fn print(o: &Outcome) {
         "| design | configurations | log det M (per parameter) | predicted mean error after calibration [mm] | resolver floor [mm] |"
     );
     println!("|---|---|---|---|---|");
-    for (name, f) in [("planned", &o.planned), ("the paper's 27 poses", &o.paper)] {
+    let rows = std::iter::once(("planned", &o.planned))
+        .chain(o.paper.as_ref().map(|p| ("the paper's 27 poses", p)));
+    for (name, f) in rows {
         println!(
             "| {name} | {} | {:.1} ({:.2}) | {:.3} | {:.3} |",
             f.configs, f.log_det, f.log_det_per_param, f.predicted_mm, f.floor_mm
         );
+    }
+    if let Some(why) = &o.paper_unreachable {
+        println!("| the paper's 27 poses | — | {why} | | |");
     }
     println!(
         "\nPredicted at {} other reachable configurations × 0/45/90 N (linearised: the parameters' covariance from the design, the resolvers' floor added).",
