@@ -195,7 +195,7 @@ pub fn run(a: &PlanArgs) -> Result<()> {
         Orientations::Any => 2000 * a.candidates,
         Orientations::Down => 50 * a.candidates,
     };
-    let lim = model.limits().clone();
+    let lim = *model.limits();
     let inside = |p: &nalgebra::Vector3<f64>| {
         (x0..=x1).contains(&p.x)
             && (y0..=y1).contains(&p.y)
