@@ -7,7 +7,8 @@ use pa10::calib::dataset::Dataset;
 use pa10::calib::evaluate::evaluate;
 use pa10::calib::fit::{CalibOptions, calibrate};
 use pa10::calib::plan::{
-    Information, PlanNoise, design_model, information, predicted_error, prior, select,
+    Information, PlanNoise, design_model, i_score, information, predicted_error, prior, select,
+    select_by, workspace_weight,
 };
 use pa10::model::{Frame, Model};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
@@ -105,6 +106,17 @@ fn planned_poses_beat_random_ones_and_the_prediction_is_what_calibration_reaches
         .iter()
         .map(|q| information(&design, q, &LOADS, &noise))
         .collect();
+    let w = workspace_weight(
+        &design,
+        &cands.iter().step_by(4).copied().collect::<Vec<_>>(),
+        &VAL_LOADS,
+    );
+    let i_planned: Vec<[f64; 6]> = select_by(&infos, 12, 10, &|m: &Information| i_score(m, &w))
+        .unwrap()
+        .chosen
+        .iter()
+        .map(|&i| cands[i])
+        .collect();
     let planned: Vec<[f64; 6]> = select(&infos, 12, 10)
         .unwrap()
         .chosen
@@ -136,6 +148,7 @@ fn planned_poses_beat_random_ones_and_the_prediction_is_what_calibration_reaches
         let val = measure(&truth, &val_q, &VAL_LOADS, "v", &mut vr);
         for (name, qs) in [
             ("planned 12", &planned),
+            ("I-planned 12", &i_planned),
             ("random 12", &random),
             ("paper 27", &paper),
         ] {
@@ -160,7 +173,7 @@ fn planned_poses_beat_random_ones_and_the_prediction_is_what_calibration_reaches
     eprintln!(
         "mean over seeds: planned 12 {planned_e:.3} mm, random 12 {random_e:.3} mm, paper 27 {paper_e:.3} mm"
     );
-    for name in ["planned 12", "random 12", "paper 27"] {
+    for name in ["planned 12", "I-planned 12", "random 12", "paper 27"] {
         eprintln!(
             "{name}: measured {:.3} mm, predicted {:.3} mm",
             mean(name, 2),
@@ -176,8 +189,10 @@ fn planned_poses_beat_random_ones_and_the_prediction_is_what_calibration_reaches
         planned_e <= paper_e,
         "planned 12 {planned_e} vs paper 27 {paper_e} mm"
     );
+    let i_e = mean("I-planned 12", 2);
+    assert!(i_e < random_e, "I-planned {i_e} vs random {random_e} mm");
     // the prediction made before measuring is within 20 % of what calibration reached
-    for name in ["planned 12", "random 12", "paper 27"] {
+    for name in ["planned 12", "I-planned 12", "random 12", "paper 27"] {
         let (m, p) = (mean(name, 2), mean(name, 3));
         assert!(
             (p / m - 1.0).abs() < 0.2,

@@ -10,14 +10,16 @@
 //! (which repeats do not average). Its information `JᵀJ`, summed over the campaign, plus a
 //! prior of one tolerance per parameter (the fit's prior on what data cannot see), is `M`.
 //!
-//! - **Criterion: D-optimality**, `log det M` (Borm & Menq's O1 is its geometric mean of
-//!   singular values; Nahvi & Hollerbach's noise amplification index O4 mixes in the smallest
-//!   one). D is chosen because it is invariant to how each parameter is scaled once a scale is
-//!   fixed for the prior, rewards every identifiable direction rather than the worst one, and
-//!   is the determinant of the parameter covariance the prediction below uses.
-//! - **Selection**: greedy forward (each step the candidate with the largest
-//!   `log det(M + J_cᵀJ_c)`, a rank-k update), then Fedorov exchange passes until no swap of a
-//!   chosen configuration for a candidate raises the criterion.
+//! - **Criteria**: **I-optimality**, the mean predicted position variance over where the arm
+//!   will work, `trace(W M⁻¹)` with `W` = the average `J_pᵀJ_p` over the volume
+//!   ([`i_score`], [`workspace_weight`]; `pa10 plan`'s default), and **D-optimality**,
+//!   `log det M` ([`log_det`]; Borm & Menq's O1 is its geometric mean of singular values).
+//!   D rewards pinning every parameter, including combinations that move the tool nowhere in
+//!   the volume; I spends the measurements on what the tool's error there depends on. On the
+//!   independent generator I beats random configurations and D does not (docs/calibration.md).
+//! - **Selection**: greedy forward (each step the candidate with the best criterion after
+//!   adding it), then exchange passes until no swap of a chosen configuration for a candidate
+//!   improves it ([`select`] for D, [`select_by`] for any).
 //! - **Prediction**: `Cov(X) = M⁻¹`; at a validation configuration and load the tool's position
 //!   error covariance is `J_p M⁻¹ J_pᵀ` (calibration) plus the resolvers' own `J_q Σ_q J_qᵀ`
 //!   (the floor, which no calibration removes); its expected norm is the predicted mean error.
@@ -205,12 +207,58 @@ pub struct Design {
     pub chosen: Vec<usize>,
     /// `log det M` of the design (prior included).
     pub log_det: f64,
+    /// The criterion's value (`log det M` for D).
+    pub score: f64,
 }
 
 /// Chooses `n` of the candidates' informations (`infos[i]` for candidate i, from
 /// [`information`]) maximising `log det(prior + Σ chosen)`: greedy forward, then exchange
 /// passes (at most `max_passes`) until no swap raises it by more than 1e-9.
 pub fn select(infos: &[Information], n: usize, max_passes: usize) -> Result<Design, PlanError> {
+    select_by(infos, n, max_passes, &log_det)
+}
+
+/// The I-optimality score of information `m` (prior included) for where the arm will work:
+/// minus the mean predicted position variance `trace(W M⁻¹)`, `W` = [`workspace_weight`]
+/// (larger is better; −∞ when `m` is singular).
+pub fn i_score(m: &Information, w: &Information) -> f64 {
+    match Cholesky::new(*m) {
+        // trace(W M⁻¹) = Σ W ∘ M⁻¹ (both symmetric)
+        Some(ch) => -w.component_mul(&ch.inverse()).sum(),
+        None => f64::NEG_INFINITY,
+    }
+}
+
+/// `W = Σ J_pᵀ J_p / n` over link configurations `qs` and loads (unwhitened position rows):
+/// the average over where the arm will work of what a parameter error does to the tool.
+pub fn workspace_weight(model: &Model, qs: &[[f64; 6]], loads_n: &[f64]) -> Information {
+    let unit = PlanNoise {
+        position_m: 3f64.sqrt(),
+        orientation_rad: 3f64.sqrt(),
+        resolver_rad: 0.0,
+        repeats: 1,
+    };
+    let mut w = Information::zeros();
+    let mut n = 0usize;
+    for q in qs {
+        for &l in loads_n {
+            let r = design_rows(model, q, l, &unit);
+            let jp: SMatrix<f64, 3, DESIGN_COLS> = r.fixed_rows::<3>(0).into_owned();
+            w += jp.transpose() * jp;
+            n += 1;
+        }
+    }
+    w / n.max(1) as f64
+}
+
+/// [`select`] with any criterion of the information (larger is better): D is
+/// [`log_det`], I is [`i_score`] with a [`workspace_weight`].
+pub fn select_by(
+    infos: &[Information],
+    n: usize,
+    max_passes: usize,
+    score: &(dyn Fn(&Information) -> f64 + Sync),
+) -> Result<Design, PlanError> {
     if n == 0 || n > infos.len() {
         return Err(PlanError::Invalid(format!(
             "configurations: 1…{} (the candidates), got {n}",
@@ -221,16 +269,16 @@ pub fn select(infos: &[Information], n: usize, max_passes: usize) -> Result<Desi
     let mut chosen: Vec<usize> = Vec::with_capacity(n);
     let mut m = base;
     for _ in 0..n {
-        let best = best_addition(infos, &m, &chosen);
+        let best = best_addition(infos, &m, &chosen, score);
         chosen.push(best.1);
         m += infos[best.1];
     }
-    let mut value = log_det(&m);
+    let mut value = score(&m);
     for _ in 0..max_passes {
         let mut improved = false;
         for k in 0..chosen.len() {
             let without = m - infos[chosen[k]];
-            let mut best = best_addition(infos, &without, &chosen);
+            let mut best = best_addition(infos, &without, &chosen, score);
             if best.0 <= value + 1e-9 {
                 best = (value, chosen[k]);
             }
@@ -247,19 +295,25 @@ pub fn select(infos: &[Information], n: usize, max_passes: usize) -> Result<Desi
     }
     Ok(Design {
         chosen,
-        log_det: value,
+        log_det: log_det(&m),
+        score: value,
     })
 }
 
-/// The candidate not in `chosen` whose information added to `m` gives the largest
-/// `log det`, and that value (ties: the lower index; in parallel, deterministic).
-fn best_addition(infos: &[Information], m: &Information, chosen: &[usize]) -> (f64, usize) {
+/// The candidate not in `chosen` whose information added to `m` gives the largest score,
+/// and that value (ties: the lower index; in parallel, deterministic).
+fn best_addition(
+    infos: &[Information],
+    m: &Information,
+    chosen: &[usize],
+    score: &(dyn Fn(&Information) -> f64 + Sync),
+) -> (f64, usize) {
     use rayon::prelude::*;
     infos
         .par_iter()
         .enumerate()
         .filter(|(i, _)| !chosen.contains(i))
-        .map(|(i, info)| (log_det(&(m + info)), i))
+        .map(|(i, info)| (score(&(m + info)), i))
         .reduce(
             || (f64::NEG_INFINITY, usize::MAX),
             |a, b| {

@@ -39,7 +39,7 @@ enum Command {
     Accuracy(accuracy_cmd::AccuracyArgs),
     /// Calibrate the flexible geometric model on measurements (two-level LM, seed paper II-C).
     Calibrate(calib_cmd::CalibrateArgs),
-    /// Design a calibration campaign: the poses to measure (D-optimal) and the accuracy they predict.
+    /// Design a calibration campaign: the poses to measure (I- or D-optimal) and the accuracy they predict.
     Plan(plan_cmd::PlanArgs),
     /// ISO 9283 pose accuracy and repeatability: the test poses of a cube, then AP/RP per pose.
     #[command(subcommand)]

@@ -1,5 +1,5 @@
 //! `pa10 plan`: a calibration campaign designed for the model to be identified — the pose list
-//! `pa10 collect run` takes, chosen D-optimally among reachable candidates in the instrument's
+//! `pa10 collect run` takes, chosen I- (or D-) optimally among reachable candidates in the instrument's
 //! volume, with the accuracy it predicts beside the paper's 27 poses (`pa10::calib::plan`).
 
 use std::path::PathBuf;
@@ -8,8 +8,8 @@ use anyhow::{Context, Result, bail, ensure};
 use clap::Args;
 use pa10::calib::collect::{PoseTarget, poses_csv};
 use pa10::calib::plan::{
-    Information, PlanNoise, check_loads, check_noise, design_log_det, design_model, information,
-    predicted_error, prior, select,
+    Information, PlanNoise, check_loads, check_noise, design_log_det, design_model, i_score,
+    information, predicted_error, prior, select, select_by, workspace_weight,
 };
 use pa10::model::{Frame, Model, frame_from_pose};
 use pa10::sim::experiment::{grid_poses, random_pose};
@@ -53,6 +53,10 @@ pub struct PlanArgs {
     /// ±0.3 rad tilts and ±0.6 rad of turn, as the paper's grid).
     #[arg(long, value_enum, default_value_t = Orientations::Any)]
     orientations: Orientations,
+    /// The design criterion: `i` (I-optimal: the smallest predicted position variance averaged
+    /// over the volume) or `d` (D-optimal: the largest `log det` of the information).
+    #[arg(long, value_enum, default_value_t = Criterion::I)]
+    criterion: Criterion,
     /// Candidate configurations to choose from.
     #[arg(long, default_value_t = 1500)]
     candidates: usize,
@@ -74,6 +78,15 @@ pub struct PlanArgs {
     /// Print one JSON object instead of the tables.
     #[arg(long)]
     json: bool,
+}
+
+/// The design criterion.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Criterion {
+    /// I-optimal: the mean predicted position variance over the volume, smallest.
+    I,
+    /// D-optimal: `log det` of the information, largest.
+    D,
 }
 
 /// Which tool orientations the candidates take.
@@ -108,6 +121,7 @@ struct Outcome {
     /// Predicted mean error (mm) of the best design of each size: "how many do I need?"
     curve: Vec<(usize, f64)>,
     candidates: usize,
+    criterion: &'static str,
     validation_configs: usize,
     out: String,
 }
@@ -247,11 +261,19 @@ pub fn run(a: &PlanArgs) -> Result<()> {
         .par_iter()
         .map(|q| information(&model, q, &a.loads, &noise))
         .collect();
-    let design = select(&infos, a.configs, 10)?;
-    // validation: other candidates (every one the design did not take, up to 60)
-    let val: Vec<[f64; 6]> = (0..cands.len())
+    // where the arm will work: every fourth candidate stands for the volume in the
+    // I-criterion; the prediction is made at others (every fourth from the second), not chosen
+    let work: Vec<[f64; 6]> = cands.iter().step_by(4).take(150).copied().collect();
+    let w = workspace_weight(&model, &work, &VALIDATION_LOADS);
+    let i_crit = |m: &Information| i_score(m, &w);
+    let choose = |n: usize, passes: usize| match a.criterion {
+        Criterion::I => select_by(&infos, n, passes, &i_crit),
+        Criterion::D => select(&infos, n, passes),
+    };
+    let design = choose(a.configs, 10)?;
+    let val: Vec<[f64; 6]> = (1..cands.len())
+        .step_by(4)
         .filter(|i| !design.chosen.contains(i))
-        .step_by((cands.len() / 60).max(1))
         .take(60)
         .map(|i| cands[i])
         .collect();
@@ -300,9 +322,9 @@ pub fn run(a: &PlanArgs) -> Result<()> {
     };
 
     let mut curve = Vec::new();
-    for n in [4, 6, 8, 10, 12, 16, 20, 27, 36, 48] {
+    for n in [4, 6, 8, 10, 12, 16, 20, 27, 36] {
         if n <= cands.len() {
-            let d = select(&infos, n, 2)?;
+            let d = choose(n, 1)?;
             curve.push((n, figures(&sum(&d.chosen), n)?.predicted_mm));
         }
     }
@@ -328,6 +350,10 @@ pub fn run(a: &PlanArgs) -> Result<()> {
         paper_unreachable,
         curve,
         candidates: cands.len(),
+        criterion: match a.criterion {
+            Criterion::I => "I",
+            Criterion::D => "D",
+        },
         validation_configs: val.len(),
         out: a.out.display().to_string(),
     };
@@ -364,8 +390,8 @@ fn above(model: &Model, q: &[f64; 6], table_z: Option<f64>) -> bool {
 
 fn print(o: &Outcome) {
     println!(
-        "pa10 plan: {} configurations chosen D-optimally among {} reachable candidates; pose list in {}",
-        o.planned.configs, o.candidates, o.out
+        "pa10 plan: {} configurations chosen {}-optimally among {} reachable candidates; pose list in {}",
+        o.planned.configs, o.criterion, o.candidates, o.out
     );
     println!();
     println!(
