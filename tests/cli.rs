@@ -519,6 +519,44 @@ fn plan_writes_a_pose_list_collect_reads_and_refuses_bad_settings() {
             "{p:?}: tool at {t:?}"
         );
     }
+    // the same volume given in the instrument's frame (placed at (0.5, 0, 0.1) m, axes as the
+    // base's), with the curve plotted
+    let inst_out = dir.join("inst.csv");
+    let o = pa10(&[
+        "plan",
+        "--box=-0.05,-0.2,-0.15,0.2,0.2,0.15",
+        "--instrument-frame",
+        "0.5",
+        "0",
+        "0.1",
+        "1",
+        "0",
+        "0",
+        "0",
+        "--configs",
+        "6",
+        "--loads",
+        "0",
+        "--candidates",
+        "200",
+        "--plot",
+        dir.join("curve.svg").to_str().unwrap(),
+        "--out",
+        inst_out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(dir.join("curve.svg").exists());
+    for p in pa10::calib::collect::parse_poses(&std::fs::read_to_string(&inst_out).unwrap(), "i")
+        .unwrap()
+    {
+        let t = m.fk(&p.q).translation.vector;
+        assert!(
+            (0.45..=0.70).contains(&t.x)
+                && (-0.2..=0.2).contains(&t.y)
+                && (-0.05..=0.25).contains(&t.z),
+            "{p:?}: tool at {t:?} (instrument-frame box)"
+        );
+    }
     let planned = j["planned"]["predicted_mm"].as_f64().unwrap();
     let floor = j["planned"]["floor_mm"].as_f64().unwrap();
     assert!(planned > floor && planned < 2.0 * floor, "{j}");
@@ -541,12 +579,38 @@ fn plan_writes_a_pose_list_collect_reads_and_refuses_bad_settings() {
             vec!["--box", "5,5,5,6,6,6", "--candidates", "20"],
             "reachable",
         ),
+        (
+            vec![
+                "--box",
+                "0.45,-0.2,-0.05,0.70,0.2,0.25",
+                "--sphere",
+                "0.6,0,0.1,0.2",
+            ],
+            "cannot be used with",
+        ),
+        (vec!["--sphere", "0.6,0,0.1,-1"], "positive radius"),
+        (
+            vec![
+                "--box",
+                "0.45,-0.2,-0.05,0.70,0.2,0.25",
+                "--instrument-frame",
+                "0",
+                "0",
+                "0",
+                "2",
+                "0",
+                "0",
+                "0",
+            ],
+            "unit quaternion",
+        ),
     ] {
         let fresh = dir.join("never.csv");
         let mut a = vec!["plan", "--out", fresh.to_str().unwrap()];
         a.extend(args);
         let o = pa10(&a);
-        assert_eq!(o.status.code(), Some(1), "{a:?}");
+        // 1: refused by pa10; 2: a usage error clap reports (two volumes at once)
+        assert!(matches!(o.status.code(), Some(1 | 2)), "{a:?}");
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(err.contains(why), "{a:?}: {err}");
         assert!(!fresh.exists(), "nothing written on a refusal");

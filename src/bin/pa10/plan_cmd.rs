@@ -39,6 +39,13 @@ pub struct PlanArgs {
     /// tracker's or a camera's working volume).
     #[arg(long, value_delimiter = ',')]
     sphere: Vec<f64>,
+    /// The volume is given in the instrument's frame, which sits here in the robot base frame
+    /// (a rough `base_from_instrument`: X Y Z in m, QW QX QY QZ; a tape measure's worth).
+    #[arg(long, num_args = 7, value_names = ["X", "Y", "Z", "QW", "QX", "QY", "QZ"])]
+    instrument_frame: Option<Vec<f64>>,
+    /// Write the "how many configurations" curve as a plot (SVG).
+    #[arg(long, value_name = "FILE")]
+    plot: Option<PathBuf>,
     /// Configurations to measure (each at every load).
     #[arg(long, default_value_t = 12)]
     configs: usize,
@@ -130,8 +137,22 @@ const VALIDATION_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
 
 /// `pa10 plan`.
 pub fn run(a: &PlanArgs) -> Result<()> {
-    // the volume: a box, or a sphere (sampled in its bounding box, kept inside it)
-    let (bounds, ball) = if a.sphere.is_empty() {
+    // the volume: a box or a sphere, in the base frame or (with --instrument-frame) in the
+    // instrument's; candidates are sampled in its bounding box in the base frame and kept inside
+    let inst = match &a.instrument_frame {
+        None => None,
+        Some(t) => {
+            let q = [t[3], t[4], t[5], t[6]];
+            let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            ensure!(
+                t.iter().all(|v| v.is_finite()) && (n - 1.0).abs() < 1e-3,
+                "--instrument-frame: X Y Z in metres and a unit quaternion QW QX QY QZ; its norm is {n}"
+            );
+            Some(frame_from_pose([t[0], t[1], t[2]], q))
+        }
+    };
+    let to_base = |p: nalgebra::Point3<f64>| inst.map_or(p, |f| f * p);
+    let (vol_box, ball) = if a.sphere.is_empty() {
         let b = <[f64; 6]>::try_from(a.volume.as_slice())
             .map_err(|_| anyhow::anyhow!("--box takes six values, got {}", a.volume.len()))?;
         ensure!(
@@ -139,7 +160,7 @@ pub fn run(a: &PlanArgs) -> Result<()> {
             "--box: XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX in metres with each minimum below its maximum, got {:?}",
             a.volume
         );
-        (b, None)
+        (Some(b), None)
     } else {
         let [cx, cy, cz, r] = <[f64; 4]>::try_from(a.sphere.as_slice()).map_err(|_| {
             anyhow::anyhow!(
@@ -152,11 +173,40 @@ pub fn run(a: &PlanArgs) -> Result<()> {
             "--sphere: a finite centre and a positive radius in metres, got {:?}",
             a.sphere
         );
-        (
-            [cx - r, cy - r, cz - r, cx + r, cy + r, cz + r],
-            Some((nalgebra::Vector3::new(cx, cy, cz), r)),
-        )
+        (None, Some((nalgebra::Point3::new(cx, cy, cz), r)))
     };
+    // the bounding box in the base frame: of the box's corners, or of the sphere
+    let corners: Vec<nalgebra::Point3<f64>> = match (vol_box, ball) {
+        (Some(b), _) => (0..8)
+            .map(|k| {
+                let pick = |bit: usize, lo: f64, hi: f64| if k & bit == 0 { lo } else { hi };
+                to_base(nalgebra::Point3::new(
+                    pick(1, b[0], b[3]),
+                    pick(2, b[1], b[4]),
+                    pick(4, b[2], b[5]),
+                ))
+            })
+            .collect(),
+        (None, Some((c, r))) => {
+            let c = to_base(c);
+            vec![
+                c - nalgebra::Vector3::repeat(r),
+                c + nalgebra::Vector3::repeat(r),
+            ]
+        }
+        (None, None) => bail!("--box or --sphere: the instrument's measuring volume"),
+    };
+    let lo = corners
+        .iter()
+        .fold(nalgebra::Vector3::repeat(f64::INFINITY), |m, p| {
+            m.inf(&p.coords)
+        });
+    let hi = corners
+        .iter()
+        .fold(nalgebra::Vector3::repeat(f64::NEG_INFINITY), |m, p| {
+            m.sup(&p.coords)
+        });
+    let bounds = [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z];
     let [x0, y0, z0, x1, y1, z1] = bounds;
     ensure!(
         (1..=200).contains(&a.configs),
@@ -210,11 +260,16 @@ pub fn run(a: &PlanArgs) -> Result<()> {
         Orientations::Down => 50 * a.candidates,
     };
     let lim = *model.limits();
+    // a base-frame point inside the volume (tested in the volume's own frame)
     let inside = |p: &nalgebra::Vector3<f64>| {
-        (x0..=x1).contains(&p.x)
-            && (y0..=y1).contains(&p.y)
-            && (z0..=z1).contains(&p.z)
-            && ball.is_none_or(|(c, r)| (p - c).norm() <= r)
+        let v = inst.map_or(nalgebra::Point3::from(*p), |f| {
+            f.inverse() * nalgebra::Point3::from(*p)
+        });
+        vol_box.is_none_or(|b| {
+            (b[0]..=b[3]).contains(&v.x)
+                && (b[1]..=b[4]).contains(&v.y)
+                && (b[2]..=b[5]).contains(&v.z)
+        }) && ball.is_none_or(|(c, r)| (v - c).norm() <= r)
     };
     while cands.len() < a.candidates {
         tries += 1;
@@ -329,6 +384,25 @@ pub fn run(a: &PlanArgs) -> Result<()> {
         }
     }
 
+    if let Some(p) = &a.plot {
+        let floor = planned.floor_mm;
+        pa10::plot::series(
+            p,
+            "pa10 plan: predicted mean position error after calibration",
+            "configurations",
+            "mm",
+            &[
+                (
+                    "planned".to_string(),
+                    curve.iter().map(|&(n, e)| (n as f64, e)).collect(),
+                ),
+                (
+                    "resolver floor".to_string(),
+                    curve.iter().map(|&(n, _)| (n as f64, floor)).collect(),
+                ),
+            ],
+        )?;
+    }
     let targets: Vec<PoseTarget> = design
         .chosen
         .iter()
