@@ -9,7 +9,7 @@ use anyhow::{Context, Result, bail, ensure};
 use clap::{Args, Subcommand};
 use pa10::accuracy::iso9283::{Cube, PoseFigures, figures, test_poses};
 use pa10::calib::collect::{PoseTarget, parse_instrument, parse_poses, poses_csv};
-use pa10::model::{Frame, frame_from_pose};
+use pa10::model::Frame;
 use serde::Serialize;
 
 use crate::model_cmds::ModelArg;
@@ -95,18 +95,7 @@ fn plan(a: &IsoPlanArgs) -> Result<()> {
         "--load: 0…500 N, got {}",
         a.load
     );
-    let tool = match &a.tool {
-        None => frame_from_pose([0.0, 0.0, 0.35], [1.0, 0.0, 0.0, 0.0]),
-        Some(t) => {
-            let q = [t[3], t[4], t[5], t[6]];
-            let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-            ensure!(
-                t.iter().all(|v| v.is_finite()) && (n - 1.0).abs() < 1e-6,
-                "--tool: X Y Z in metres and a unit quaternion QW QX QY QZ; its norm is {n}"
-            );
-            frame_from_pose([t[0], t[1], t[2]], q)
-        }
-    };
+    let tool = crate::model_cmds::tool_arg(a.tool.as_deref())?;
     let model = a.model.load()?.with_tool(&tool)?;
     let cube = Cube {
         centre: [cx, cy, cz],

@@ -14,6 +14,28 @@ pub struct ModelArg {
     model: Option<PathBuf>,
 }
 
+/// A pose given on the command line as X Y Z (m) QW QX QY QZ; `flag` names it in errors.
+pub fn pose_arg(flag: &str, t: &[f64]) -> Result<pa10::model::Frame> {
+    let [x, y, z, qw, qx, qy, qz] = <[f64; 7]>::try_from(t).map_err(|_| {
+        anyhow::anyhow!("{flag} takes X Y Z QW QX QY QZ (7 values), got {}", t.len())
+    })?;
+    let n = (qw * qw + qx * qx + qy * qy + qz * qz).sqrt();
+    anyhow::ensure!(
+        t.iter().all(|v| v.is_finite()) && (n - 1.0).abs() < 1e-6,
+        "{flag}: X Y Z in metres and a unit quaternion QW QX QY QZ; its norm is {n}"
+    );
+    Ok(frame_from_pose([x, y, z], [qw, qx, qy, qz]))
+}
+
+/// `--tool X Y Z QW QX QY QZ` (flange → tool), or the campaigns' tooling ball 0.35 m along the
+/// flange axis when absent.
+pub fn tool_arg(t: Option<&[f64]>) -> Result<pa10::model::Frame> {
+    match t {
+        Some(t) => pose_arg("--tool", t),
+        None => Ok(frame_from_pose([0.0, 0.0, 0.35], [1.0, 0.0, 0.0, 0.0])),
+    }
+}
+
 impl ModelArg {
     pub fn load(&self) -> Result<Model> {
         match &self.model {

@@ -11,7 +11,7 @@ use pa10::calib::plan::{
     Information, PlanNoise, check_loads, check_noise, design_log_det, design_model, i_score,
     information, predicted_error, prior, select, select_by, workspace_weight,
 };
-use pa10::model::{Frame, Model, frame_from_pose};
+use pa10::model::{Frame, Model};
 use pa10::sim::experiment::{grid_poses, random_pose};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
@@ -139,18 +139,11 @@ const VALIDATION_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
 pub fn run(a: &PlanArgs) -> Result<()> {
     // the volume: a box or a sphere, in the base frame or (with --instrument-frame) in the
     // instrument's; candidates are sampled in its bounding box in the base frame and kept inside
-    let inst = match &a.instrument_frame {
-        None => None,
-        Some(t) => {
-            let q = [t[3], t[4], t[5], t[6]];
-            let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-            ensure!(
-                t.iter().all(|v| v.is_finite()) && (n - 1.0).abs() < 1e-3,
-                "--instrument-frame: X Y Z in metres and a unit quaternion QW QX QY QZ; its norm is {n}"
-            );
-            Some(frame_from_pose([t[0], t[1], t[2]], q))
-        }
-    };
+    let inst = a
+        .instrument_frame
+        .as_deref()
+        .map(|t| crate::model_cmds::pose_arg("--instrument-frame", t))
+        .transpose()?;
     let to_base = |p: nalgebra::Point3<f64>| inst.map_or(p, |f| f * p);
     let (vol_box, ball) = if a.sphere.is_empty() {
         let b = <[f64; 6]>::try_from(a.volume.as_slice())
@@ -234,18 +227,7 @@ pub fn run(a: &PlanArgs) -> Result<()> {
         ..PlanNoise::default()
     };
     check_noise(&noise)?;
-    let tool = match &a.tool {
-        None => frame_from_pose([0.0, 0.0, 0.35], [1.0, 0.0, 0.0, 0.0]),
-        Some(t) => {
-            let q = [t[3], t[4], t[5], t[6]];
-            let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-            ensure!(
-                t.iter().all(|v| v.is_finite()) && (n - 1.0).abs() < 1e-6,
-                "--tool: X Y Z in metres and a unit quaternion QW QX QY QZ; its norm is {n}"
-            );
-            frame_from_pose([t[0], t[1], t[2]], q)
-        }
-    };
+    let tool = crate::model_cmds::tool_arg(a.tool.as_deref())?;
     let model = design_model(&a.model.load()?.with_tool(&tool)?)?;
 
     // Candidates: `any` — joint angles uniform within the limits less the margin, kept when
