@@ -34,6 +34,10 @@ use rand_pcg::Pcg64;
 use serde::Serialize;
 use serde_json::json;
 
+#[path = "common/six_points.rs"]
+mod motion_path;
+use motion_path::six_points;
+
 const CAL_LOADS: [f64; 3] = [0.0, 22.0, 44.0];
 const VAL_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
 const PERIOD_S: f64 = 0.002;
@@ -768,24 +772,6 @@ fn stream(ls: &mut Lockstep) -> Result<(f64, f64)> {
         settle(ls)?;
     }
     Ok(((sum / n.max(1) as f64).sqrt(), peak))
-}
-
-/// `docs/motion.md`'s six waypoints (link side, rad) at 2 s spacing.
-fn six_points() -> serde_json::Value {
-    let q = [
-        [0.3, 0.5, 1.4, 0.2, 1.0, 0.3],
-        [0.6, 0.7, 1.1, 0.4, 0.8, 0.6],
-        [0.4, 0.3, 1.5, 0.1, 1.2, 0.2],
-        [-0.2, 0.5, 1.2, -0.3, 0.9, -0.4],
-        [-0.5, 0.6, 1.0, -0.1, 1.1, 0.0],
-        [0.0, 0.4, 1.6, 0.0, 1.1, 0.0],
-    ];
-    json!(
-        q.iter()
-            .enumerate()
-            .map(|(i, p)| json!({"positions": p, "time_from_start": 2.0 * (i + 1) as f64}))
-            .collect::<Vec<_>>()
-    )
 }
 
 /// RMS and peak (mrad) of MuJoCo's link angles − the trajectory's desired positions, every

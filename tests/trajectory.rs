@@ -8,6 +8,10 @@ use pa10::model::Model;
 use pa10::sim::rig::Lockstep;
 use serde_json::{Value, json};
 
+#[path = "../examples/common/six_points.rs"]
+mod motion_path;
+use motion_path::six_points;
+
 const SEED: u64 = 3;
 const PERIOD: f64 = 0.002;
 
@@ -28,24 +32,6 @@ fn status(ls: &Lockstep) -> Value {
 
 fn six(v: &Value) -> [f64; 6] {
     serde_json::from_value(v.clone()).unwrap()
-}
-
-/// Six waypoints through the workspace (link side, rad) at 2 s spacing.
-fn six_points() -> Value {
-    let q = [
-        [0.3, 0.5, 1.4, 0.2, 1.0, 0.3],
-        [0.6, 0.7, 1.1, 0.4, 0.8, 0.6],
-        [0.4, 0.3, 1.5, 0.1, 1.2, 0.2],
-        [-0.2, 0.5, 1.2, -0.3, 0.9, -0.4],
-        [-0.5, 0.6, 1.0, -0.1, 1.1, 0.0],
-        [0.0, 0.4, 1.6, 0.0, 1.1, 0.0],
-    ];
-    json!(
-        q.iter()
-            .enumerate()
-            .map(|(i, p)| json!({"positions": p, "time_from_start": 2.0 * (i + 1) as f64}))
-            .collect::<Vec<_>>()
-    )
 }
 
 /// RMS and peak (mrad) of true link − desired over the whole trajectory, for `model` at

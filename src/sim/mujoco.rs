@@ -208,12 +208,10 @@ impl Plant for MujocoPlant {
         for j in 0..6 {
             let lim = drive.speed_limit[j];
             self.reference[j] = match drive.stop_decel {
+                _ if !drive.engaged => 0.0,
                 Some(a) => 0.0f64.clamp(self.reference[j] - a * dt, self.reference[j] + a * dt),
                 None => drive.speed[j].clamp(-lim, lim),
             };
-            if !drive.engaged {
-                self.reference[j] = 0.0;
-            }
         }
         self.pending_s += dt;
         let steps = (self.pending_s / self.step_s + 1e-9).floor();

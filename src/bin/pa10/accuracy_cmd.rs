@@ -106,14 +106,18 @@ pub struct MapArgs {
     csv: Option<PathBuf>,
 }
 
-fn map(a: &MapArgs) -> Result<()> {
-    let [x0, x1, y0, y1] = a.region.as_slice() else {
-        bail!(
+/// `--region XMIN,XMAX,YMIN,YMAX` (m): exactly four numbers.
+fn region(v: &[f64]) -> Result<[f64; 4]> {
+    <[f64; 4]>::try_from(v).map_err(|_| {
+        anyhow::anyhow!(
             "--region takes XMIN,XMAX,YMIN,YMAX (4 values), got {}",
-            a.region.len()
-        );
-    };
-    let (x0, x1, y0, y1) = (*x0, *x1, *y0, *y1);
+            v.len()
+        )
+    })
+}
+
+fn map(a: &MapArgs) -> Result<()> {
+    let [x0, x1, y0, y1] = region(&a.region)?;
     anyhow::ensure!(
         [x0, x1, y0, y1, a.z].iter().all(|v| v.is_finite()) && x0 < x1 && y0 < y1,
         "--region: finite XMIN < XMAX, YMIN < YMAX in metres, and a finite --z"
@@ -204,12 +208,7 @@ fn config(a: &AccuracyArgs) -> Result<McConfig> {
         s if s.len() == 6 => std::array::from_fn(|j| s[j] * ARCMIN),
         s => bail!("--sigma-arcmin takes one value or six, got {}", s.len()),
     };
-    let [x0, x1, y0, y1] = a.region.as_slice() else {
-        bail!(
-            "--region takes XMIN,XMAX,YMIN,YMAX (4 values), got {}",
-            a.region.len()
-        );
-    };
+    let [x0, x1, y0, y1] = region(&a.region)?;
     let tool_orientation = match &a.tool_quaternion {
         None => accuracy::pointing_down(),
         Some(v) => {
@@ -237,8 +236,8 @@ fn config(a: &AccuracyArgs) -> Result<McConfig> {
         tool_offset: a.tool_offset,
         tool_orientation,
         region: Region {
-            x: (*x0, *x1),
-            y: (*y0, *y1),
+            x: (x0, x1),
+            y: (y0, y1),
         },
         seed: a.seed,
     })
