@@ -34,6 +34,10 @@ pub enum BusError {
     /// The bus (or the other side of a virtual bus) is gone.
     #[error("bus closed")]
     Closed,
+    /// A CAN FD frame sent on a classic interface (a classic bus, or a SocketCAN interface
+    /// whose MTU is 16: `ip link set can0 mtu 72`).
+    #[error("a CAN FD frame on a classic CAN interface")]
+    FdUnsupported,
     /// An operating-system error.
     #[error("CAN interface error: {0}")]
     Io(String),

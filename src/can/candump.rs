@@ -1,4 +1,5 @@
-//! can-utils' candump log format (`(ts) iface ID#DATA`): a typed [`LoggedFrame`] per line,
+//! can-utils' candump log format (`(ts) iface ID#DATA`, CAN FD frames `(ts) iface
+//! ID##FDATA` with F the FD flags nibble: 1 = bit-rate switch): a typed [`LoggedFrame`] per line,
 //! reading a log with precise errors, writing traffic as it passes, and replaying a log onto
 //! a bus with its original timing.
 
@@ -33,7 +34,8 @@ pub enum CandumpError {
         /// The error.
         source: std::io::Error,
     },
-    /// A line is not `(ts) iface ID#DATA` with a standard identifier and ≤ 8 data bytes.
+    /// A line is not `(ts) iface ID#DATA` (≤ 8 bytes) or `(ts) iface ID##FDATA` (a CAN FD
+    /// length) with a standard identifier.
     #[error("{path}:{line}: not a candump line ({reason}): `{text}`")]
     Line {
         /// The log file.
@@ -77,15 +79,42 @@ impl LoggedFrame {
             return Err("not a standard (11-bit) identifier");
         }
         let id = u16::from_str_radix(id, 16).map_err(|_| "identifier is not hexadecimal")?;
-        if data.len() % 2 != 0 || data.len() > 16 {
-            return Err("data must be 0…8 whole bytes");
+        // CAN FD: `##`, one hex digit of flags (bit 0 BRS, bit 1 ESI), then the data
+        let (fd, data) = match data.strip_prefix('#') {
+            Some(rest) => {
+                let mut c = rest.chars();
+                let flags = c
+                    .next()
+                    .and_then(|f| f.to_digit(16))
+                    .ok_or("no CAN FD flags digit after `##`")?;
+                if flags > 3 {
+                    return Err("CAN FD flags must be 0…3 (BRS, ESI)");
+                }
+                (Some(flags & 1 == 1), c.as_str())
+            }
+            None => (None, data),
+        };
+        let max = if fd.is_some() { 128 } else { 16 };
+        if data.len() % 2 != 0 || data.len() > max {
+            return Err(if fd.is_some() {
+                "data must be 0…64 whole bytes"
+            } else {
+                "data must be 0…8 whole bytes"
+            });
+        }
+        if !data.is_ascii() {
+            return Err("data is not hexadecimal");
         }
         let bytes = (0..data.len())
             .step_by(2)
             .map(|i| u8::from_str_radix(&data[i..i + 2], 16))
             .collect::<Result<Vec<u8>, _>>()
             .map_err(|_| "data is not hexadecimal")?;
-        let frame = CanFrame::new(id, &bytes).ok_or("identifier beyond 11 bits")?;
+        let frame = match fd {
+            Some(brs) => CanFrame::new_fd(id, &bytes, brs)
+                .ok_or("identifier beyond 11 bits or not a CAN FD length (0…8, 12, 16, 20, 24, 32, 48, 64)")?,
+            None => CanFrame::new(id, &bytes).ok_or("identifier beyond 11 bits")?,
+        };
         Ok(Self {
             time_s,
             iface,
@@ -95,7 +124,7 @@ impl LoggedFrame {
 }
 
 impl fmt::Display for LoggedFrame {
-    /// `(ts) iface ID#DATA`, the time with microseconds.
+    /// `(ts) iface ID#DATA` (FD: `ID##FDATA`), the time with microseconds.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
@@ -104,6 +133,9 @@ impl fmt::Display for LoggedFrame {
             self.iface,
             self.frame.id()
         )?;
+        if self.frame.is_fd() {
+            write!(f, "#{}", u8::from(self.frame.brs()))?;
+        }
         for b in self.frame.data() {
             write!(f, "{b:02X}")?;
         }
@@ -207,6 +239,19 @@ mod tests {
             LoggedFrame::parse("(1.0) can0 080#").map(|r| r.frame),
             Ok(CanFrame::new(0x80, &[]).unwrap())
         );
+        // CAN FD, with and without the bit-rate switch
+        let fd = LoggedFrame {
+            time_s: 0.25,
+            iface: "vcan0".into(),
+            frame: CanFrame::new_fd(0x180, &[0xAB; 12], true).unwrap(),
+        };
+        assert_eq!(
+            fd.to_string(),
+            format!("(0.250000) vcan0 180##1{}", "AB".repeat(12))
+        );
+        assert_eq!(LoggedFrame::parse(&fd.to_string()), Ok(fd));
+        let f = LoggedFrame::parse("(1.0) can0 100##0").unwrap().frame;
+        assert!(f.is_fd() && !f.brs() && f.dlc() == 0);
         for (line, why) in [
             ("garbage", "time"),
             ("(1.0) can0 080#0", "whole bytes"),
@@ -216,6 +261,11 @@ mod tests {
             ("(1.0) can0 080#0G", "hexadecimal"),
             ("(1.0) can0 080#001122334455667788", "whole bytes"),
             ("(inf) can0 080#00", "finite"),
+            ("(1.0) can0 180##", "flags"),
+            ("(1.0) can0 180##9", "0…3"),
+            ("(1.0) can0 180##1001122334455667788", "CAN FD length"),
+            ("(1.0) can0 180##1éé", "hexadecimal"),
+            ("(1.0) can0 080#éé", "hexadecimal"),
         ] {
             let e = LoggedFrame::parse(line).unwrap_err();
             assert!(e.contains(why), "{line}: {e}");

@@ -25,101 +25,21 @@ pub const ID_ERROR: u16 = 0x081;
 pub const ID_COMMAND: u16 = 0x101;
 /// FEEDBACK identifier of axis 1.
 pub const ID_FEEDBACK: u16 = 0x181;
+/// COMMAND_FD identifier (CAN FD): the six axes' commands of a cycle in one frame.
+pub const ID_COMMAND_FD: u16 = 0x100;
+/// FEEDBACK_FD identifier (CAN FD): the six axes' feedback of a cycle in one frame.
+pub const ID_FEEDBACK_FD: u16 = 0x180;
+/// COMMAND_FD payload, bytes: cycle, six mode bytes, a reserved byte, six speeds, six torques.
+pub const COMMAND_FD_LEN: usize = 32;
+/// FEEDBACK_FD payload, bytes: cycle, six status bytes, a reserved byte, six angles, six
+/// currents, four reserved bytes.
+pub const FEEDBACK_FD_LEN: usize = 48;
 
-/// A classic CAN data frame: 11-bit identifier and 0–8 data bytes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct CanFrame {
-    id: u16,
-    len: u8,
-    data: [u8; 8],
-}
-
-impl CanFrame {
-    /// A frame; `None` when `id` exceeds 11 bits or `data` 8 bytes.
-    pub fn new(id: u16, data: &[u8]) -> Option<Self> {
-        if id > 0x7FF || data.len() > 8 {
-            return None;
-        }
-        let mut d = [0u8; 8];
-        d[..data.len()].copy_from_slice(data);
-        Some(Self {
-            id,
-            len: data.len() as u8,
-            data: d,
-        })
-    }
-    /// A frame of `len` zero bytes, usable in constants; `None` when `id` exceeds 11 bits or
-    /// `len` 8.
-    pub const fn new_const(id: u16, len: u8) -> Option<Self> {
-        if id > 0x7FF || len > 8 {
-            return None;
-        }
-        Some(Self {
-            id,
-            len,
-            data: [0; 8],
-        })
-    }
-    /// The 11-bit identifier.
-    pub fn id(&self) -> u16 {
-        self.id
-    }
-    /// The data bytes.
-    pub fn data(&self) -> &[u8] {
-        &self.data[..self.len as usize]
-    }
-    /// Data length code.
-    pub fn dlc(&self) -> usize {
-        self.len as usize
-    }
-    /// Worst-case length on the wire, bits (stuffing and interframe space included).
-    pub fn worst_case_bits(&self) -> u32 {
-        frame_bits_worst(self.dlc())
-    }
-}
-
-/// Worst-case bits of a standard frame with `dlc` data bytes, including bit stuffing and the
-/// 3-bit interframe space: `34 + 8s + 13 + ⌊(34 + 8s − 1)/4⌋` (Davis et al. 2007).
-pub fn frame_bits_worst(dlc: usize) -> u32 {
-    let g = 34 + 8 * dlc as u32;
-    g + 13 + (g - 1) / 4
-}
-
-/// Nominal bits of a standard frame (no stuffing), interframe space included.
-pub fn frame_bits_nominal(dlc: usize) -> u32 {
-    47 + 8 * dlc as u32
-}
-
-/// Worst-case bits of one control cycle: 6 COMMAND + 1 SYNC + 6 FEEDBACK.
-pub fn cycle_bits_worst() -> u32 {
-    12 * frame_bits_worst(8) + frame_bits_worst(2)
-}
-
-/// Worst-case bus load (0…1+) of the cyclic traffic at `rate_hz` on a `bitrate` bit/s bus.
-pub fn bus_load(rate_hz: f64, bitrate: f64) -> f64 {
-    rate_hz * cycle_bits_worst() as f64 / bitrate
-}
-
-/// A cycle rate is refused when its worst-case load exceeds `limit` (0…1).
-pub fn check_rate(rate_hz: f64, bitrate: f64, limit: f64) -> Result<f64, String> {
-    if !(rate_hz.is_finite() && rate_hz > 0.0) {
-        return Err(format!("cycle rate must be > 0 Hz, got {rate_hz}"));
-    }
-    if !(bitrate.is_finite() && bitrate > 0.0) {
-        return Err(format!("bitrate must be > 0 bit/s, got {bitrate}"));
-    }
-    let load = bus_load(rate_hz, bitrate);
-    if load > limit {
-        return Err(format!(
-            "{rate_hz} Hz needs {:.1} % of a {:.0} kbit/s bus worst case, above the {:.1} % limit (max {:.0} Hz)",
-            load * 100.0,
-            bitrate / 1e3,
-            limit * 100.0,
-            limit * bitrate / cycle_bits_worst() as f64
-        ));
-    }
-    Ok(load)
-}
+pub use super::frame::{CanFrame, FD_LENGTHS, FD_MAX_LEN, Framing};
+pub use super::timing::{
+    BusTiming, FdBits, bus_load, check_rate, cycle_bits_worst, fd_frame_bits_worst,
+    frame_bits_nominal, frame_bits_worst,
+};
 
 /// An enumeration with wire numbers, written once: the enum with its discriminants, and
 /// `ALL` / `from_wire` for decoding.
@@ -350,6 +270,12 @@ pub enum Message {
     Command(AxisCommand),
     /// Axis feedback.
     Feedback(Feedback),
+    /// The six axes' commands of one cycle in one CAN FD frame: the fields of six COMMAND
+    /// frames, `axes[j].axis == j + 1` and one `cycle` for all.
+    CommandFd([AxisCommand; 6]),
+    /// The six axes' feedback of one cycle in one CAN FD frame: the fields of six FEEDBACK
+    /// frames, `axes[j].axis == j + 1` and one `cycle` for all.
+    FeedbackFd([Feedback; 6]),
 }
 
 /// Why a frame is not a valid message.
@@ -368,6 +294,16 @@ pub enum DecodeError {
         got: usize,
         /// DLC required.
         expected: usize,
+    },
+    /// A classic frame where the protocol has an FD one, or the other way round.
+    #[error("CAN id 0x{id:03X}: a {got} frame, the protocol sends it as a {expected} frame")]
+    WrongFormat {
+        /// Identifier.
+        id: u16,
+        /// The frame's format ("classic" or "CAN FD").
+        got: &'static str,
+        /// The protocol's.
+        expected: &'static str,
     },
     /// A field holds a value outside its range.
     #[error("CAN id 0x{id:03X}: {field} = {value} is out of range")]
@@ -470,12 +406,7 @@ pub fn encode(m: &Message) -> Result<CanFrame, EncodeError> {
         }
         Message::Command(c) => {
             axis_ok(c.axis)?;
-            if c.mode & 0xF0 != 0 {
-                return Err(EncodeError::OutOfRange {
-                    field: "mode",
-                    value: c.mode as f64,
-                });
-            }
+            mode_ok(c.mode)?;
             let (s, t) = (c.speed.to_le_bytes(), c.torque.to_le_bytes());
             f(
                 ID_COMMAND + c.axis as u16 - 1,
@@ -484,19 +415,86 @@ pub fn encode(m: &Message) -> Result<CanFrame, EncodeError> {
         }
         Message::Feedback(b) => {
             axis_ok(b.axis)?;
-            if b.status & 0xC0 != 0 {
-                return Err(EncodeError::OutOfRange {
-                    field: "status",
-                    value: b.status as f64,
-                });
-            }
+            status_ok(b.status)?;
             let (a, i) = (b.angle.to_le_bytes(), b.current.to_le_bytes());
             f(
                 ID_FEEDBACK + b.axis as u16 - 1,
                 &[a[0], a[1], a[2], a[3], i[0], i[1], b.status, b.cycle],
             )
         }
+        Message::CommandFd(axes) => {
+            let cycle = set_cycle(axes.map(|c| (c.axis, c.cycle)))?;
+            let mut d = [0u8; COMMAND_FD_LEN];
+            d[0] = cycle;
+            for (j, c) in axes.iter().enumerate() {
+                mode_ok(c.mode)?;
+                d[1 + j] = c.mode;
+                d[8 + 2 * j..10 + 2 * j].copy_from_slice(&c.speed.to_le_bytes());
+                d[20 + 2 * j..22 + 2 * j].copy_from_slice(&c.torque.to_le_bytes());
+            }
+            fd(ID_COMMAND_FD, &d)
+        }
+        Message::FeedbackFd(axes) => {
+            let cycle = set_cycle(axes.map(|b| (b.axis, b.cycle)))?;
+            let mut d = [0u8; FEEDBACK_FD_LEN];
+            d[0] = cycle;
+            for (j, b) in axes.iter().enumerate() {
+                status_ok(b.status)?;
+                d[1 + j] = b.status;
+                d[8 + 4 * j..12 + 4 * j].copy_from_slice(&b.angle.to_le_bytes());
+                d[32 + 2 * j..34 + 2 * j].copy_from_slice(&b.current.to_le_bytes());
+            }
+            fd(ID_FEEDBACK_FD, &d)
+        }
     }
+}
+
+/// An FD frame of the protocol: always with the bit-rate switch (a bus without a faster data
+/// phase ignores it in its timing).
+fn fd(id: u16, d: &[u8]) -> Result<CanFrame, EncodeError> {
+    CanFrame::new_fd(id, d, true).ok_or(EncodeError::OutOfRange {
+        field: "frame",
+        value: id as f64,
+    })
+}
+
+/// The one cycle of a six-axis set whose axes are 1…6 in order.
+fn set_cycle(axes: [(u8, u8); 6]) -> Result<u8, EncodeError> {
+    for (j, &(axis, cycle)) in axes.iter().enumerate() {
+        if axis as usize != j + 1 {
+            return Err(EncodeError::OutOfRange {
+                field: "axis",
+                value: axis as f64,
+            });
+        }
+        if cycle != axes[0].1 {
+            return Err(EncodeError::OutOfRange {
+                field: "cycle",
+                value: cycle as f64,
+            });
+        }
+    }
+    Ok(axes[0].1)
+}
+
+fn mode_ok(mode: u8) -> Result<(), EncodeError> {
+    if mode & 0xF0 != 0 {
+        return Err(EncodeError::OutOfRange {
+            field: "mode",
+            value: mode as f64,
+        });
+    }
+    Ok(())
+}
+
+fn status_ok(status: u8) -> Result<(), EncodeError> {
+    if status & 0xC0 != 0 {
+        return Err(EncodeError::OutOfRange {
+            field: "status",
+            value: status as f64,
+        });
+    }
+    Ok(())
 }
 
 fn dlc(frame: &CanFrame, expected: usize) -> Result<&[u8], DecodeError> {
@@ -518,9 +516,37 @@ fn range(id: u16, field: &'static str, value: u8) -> DecodeError {
     }
 }
 
+/// Whether the protocol sends `id` as a CAN FD frame.
+fn is_fd_id(id: u16) -> bool {
+    matches!(id, ID_COMMAND_FD | ID_FEEDBACK_FD)
+}
+
+/// The reserved bytes `at` of `d` must be zero (so that what decodes encodes back the same).
+fn reserved(id: u16, d: &[u8], at: &[usize]) -> Result<(), DecodeError> {
+    match at.iter().find(|&&i| d[i] != 0) {
+        Some(&i) => Err(range(id, "reserved", d[i])),
+        None => Ok(()),
+    }
+}
+
 /// Decodes a frame.
 pub fn decode(frame: &CanFrame) -> Result<Message, DecodeError> {
     let id = frame.id();
+    let known = matches!(id, ID_CONTROL | ID_STATE | ID_SYNC | ID_ERROR)
+        || (0x101..=0x106).contains(&id)
+        || (0x181..=0x186).contains(&id)
+        || is_fd_id(id);
+    if !known {
+        return Err(DecodeError::UnknownId(id));
+    }
+    if frame.is_fd() != is_fd_id(id) {
+        let name = |fd: bool| if fd { "CAN FD" } else { "classic" };
+        return Err(DecodeError::WrongFormat {
+            id,
+            got: name(frame.is_fd()),
+            expected: name(is_fd_id(id)),
+        });
+    }
     match id {
         ID_CONTROL => {
             let d = dlc(frame, 2)?;
@@ -584,186 +610,52 @@ pub fn decode(frame: &CanFrame) -> Result<Message, DecodeError> {
                 cycle: d[7],
             }))
         }
+        ID_COMMAND_FD => {
+            let d = dlc(frame, COMMAND_FD_LEN)?;
+            reserved(id, d, &[7])?;
+            let mut axes = [AxisCommand {
+                axis: 0,
+                mode: 0,
+                cycle: d[0],
+                speed: 0,
+                torque: 0,
+            }; 6];
+            for (j, c) in axes.iter_mut().enumerate() {
+                if d[1 + j] & 0xF0 != 0 {
+                    return Err(range(id, "mode", d[1 + j]));
+                }
+                c.axis = j as u8 + 1;
+                c.mode = d[1 + j];
+                c.speed = i16::from_le_bytes([d[8 + 2 * j], d[9 + 2 * j]]);
+                c.torque = i16::from_le_bytes([d[20 + 2 * j], d[21 + 2 * j]]);
+            }
+            Ok(Message::CommandFd(axes))
+        }
+        ID_FEEDBACK_FD => {
+            let d = dlc(frame, FEEDBACK_FD_LEN)?;
+            reserved(id, d, &[7, 44, 45, 46, 47])?;
+            let mut axes = [Feedback {
+                axis: 0,
+                angle: 0,
+                current: 0,
+                status: 0,
+                cycle: d[0],
+            }; 6];
+            for (j, b) in axes.iter_mut().enumerate() {
+                if d[1 + j] & 0xC0 != 0 {
+                    return Err(range(id, "status", d[1 + j]));
+                }
+                b.axis = j as u8 + 1;
+                b.status = d[1 + j];
+                b.angle =
+                    i32::from_le_bytes([d[8 + 4 * j], d[9 + 4 * j], d[10 + 4 * j], d[11 + 4 * j]]);
+                b.current = i16::from_le_bytes([d[32 + 2 * j], d[33 + 2 * j]]);
+            }
+            Ok(Message::FeedbackFd(axes))
+        }
         _ => Err(DecodeError::UnknownId(id)),
     }
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use proptest::prelude::*;
-    use proptest::test_runner::RngSeed;
-
-    #[test]
-    fn bus_load_matches_the_design_numbers() {
-        assert_eq!(frame_bits_worst(8), 135);
-        assert_eq!(frame_bits_nominal(8), 111);
-        assert_eq!(frame_bits_worst(2), 75);
-        assert_eq!(cycle_bits_worst(), 1695);
-        assert!((bus_load(500.0, 1e6) - 0.8475).abs() < 1e-12);
-        assert!(check_rate(500.0, 1e6, 0.9).is_ok());
-        let e = check_rate(600.0, 1e6, 0.9).unwrap_err();
-        assert!(e.contains("101.7 %") && e.contains("max 531 Hz"), "{e}");
-        assert!(check_rate(0.0, 1e6, 0.9).is_err());
-    }
-
-    #[test]
-    fn scalings_are_the_documented_ones() {
-        let f = encode(&Message::Command(AxisCommand::speed(2, 7, 1.0).unwrap())).unwrap();
-        assert_eq!(f.id(), 0x102);
-        assert_eq!(f.data(), &[0x02, 7, 0x88, 0x13, 0, 0, 0, 0]); // 5000 counts = 1 rad/s
-        let fb = Feedback {
-            axis: 1,
-            angle: 819_200,
-            current: -1500,
-            status: status::SERVO_ON,
-            cycle: 9,
-        };
-        let m = decode(&encode(&Message::Feedback(fb)).unwrap()).unwrap();
-        let Message::Feedback(b) = m else { panic!() };
-        assert!((b.angle_rad() - std::f64::consts::TAU).abs() < 1e-12);
-        assert_eq!(b.current_a(), -1.5);
-        assert!(AxisCommand::speed(1, 0, 7.0).is_err());
-        // the loop's encoder saturates instead, and sends 0 for a non-finite speed
-        let max = AxisCommand::speed_saturating(1, 0, 7.0);
-        assert_eq!(max.speed, i16::MAX);
-        assert_eq!(AxisCommand::speed_saturating(1, 0, -7.0).speed, i16::MIN);
-        assert_eq!(AxisCommand::speed_saturating(1, 0, f64::NAN).speed, 0);
-        assert_eq!(
-            AxisCommand::speed_saturating(2, 7, 1.0),
-            AxisCommand::speed(2, 7, 1.0).expect("in range")
-        );
-        assert!(AxisCommand::speed(1, 0, f64::NAN).is_err());
-        assert!(angle_counts(1e6).is_err());
-        assert_eq!(current_counts(99.0), i16::MAX);
-    }
-
-    #[test]
-    fn malformed_frames_are_typed_errors() {
-        let fr = |id, d: &[u8]| CanFrame::new(id, d).unwrap();
-        assert_eq!(decode(&fr(0x123, &[])), Err(DecodeError::UnknownId(0x123)));
-        assert_eq!(
-            decode(&fr(0x181, &[0; 7])),
-            Err(DecodeError::WrongDlc {
-                id: 0x181,
-                got: 7,
-                expected: 8
-            })
-        );
-        assert!(matches!(
-            decode(&fr(0x010, &[9, 0])),
-            Err(DecodeError::OutOfRange {
-                field: "request",
-                ..
-            })
-        ));
-        assert!(matches!(
-            decode(&fr(0x011, &[7, 0, 0, 0])),
-            Err(DecodeError::OutOfRange { field: "state", .. })
-        ));
-        assert!(matches!(
-            decode(&fr(0x101, &[0x10, 0, 0, 0, 0, 0, 0, 0])),
-            Err(DecodeError::OutOfRange { field: "mode", .. })
-        ));
-        assert!(matches!(
-            decode(&fr(0x081, &[1, 9, 0, 0, 0, 0, 0, 0])),
-            Err(DecodeError::OutOfRange { field: "axis", .. })
-        ));
-        assert!(CanFrame::new(0x800, &[]).is_none());
-        assert!(CanFrame::new(0x100, &[0; 9]).is_none());
-        assert!(
-            encode(&Message::Command(AxisCommand {
-                axis: 7,
-                mode: 0,
-                cycle: 0,
-                speed: 0,
-                torque: 0
-            }))
-            .is_err()
-        );
-    }
-
-    fn message() -> impl Strategy<Value = Message> {
-        prop_oneof![
-            (1u8..=5, any::<u8>()).prop_map(|(r, w)| {
-                let request = [
-                    Request::ReleaseBrakes,
-                    Request::StartControl,
-                    Request::Stop,
-                    Request::Estop,
-                    Request::ResetFault,
-                ][r as usize - 1];
-                Message::Control {
-                    request,
-                    watchdog_ms: w,
-                }
-            }),
-            (0u8..4, 0u8..6, any::<u16>()).prop_map(|(s, f, cycle)| Message::State {
-                state: [
-                    ServoState::Stopped,
-                    ServoState::BrakeRelease,
-                    ServoState::Control,
-                    ServoState::Fault
-                ][s as usize],
-                fault: [
-                    FaultCode::None,
-                    FaultCode::Watchdog,
-                    FaultCode::AxisFault,
-                    FaultCode::Limit,
-                    FaultCode::Bus,
-                    FaultCode::Rejected
-                ][f as usize],
-                cycle
-            }),
-            any::<u16>().prop_map(|cycle| Message::Sync { cycle }),
-            (1u8..=6, 0u8..=6, any::<i32>()).prop_map(|(c, axis, detail)| Message::Error {
-                code: [
-                    ErrorCode::Watchdog,
-                    ErrorCode::AxisTimeout,
-                    ErrorCode::CurrentOffset,
-                    ErrorCode::ResolverGlitch,
-                    ErrorCode::Limit,
-                    ErrorCode::Rejected
-                ][c as usize - 1],
-                axis,
-                detail
-            }),
-            (1u8..=6, 0u8..16, any::<u8>(), any::<i16>(), any::<i16>()).prop_map(
-                |(axis, mode, cycle, speed, torque)| Message::Command(AxisCommand {
-                    axis,
-                    mode,
-                    cycle,
-                    speed,
-                    torque
-                })
-            ),
-            (1u8..=6, any::<i32>(), any::<i16>(), 0u8..64, any::<u8>()).prop_map(
-                |(axis, angle, current, status, cycle)| Message::Feedback(Feedback {
-                    axis,
-                    angle,
-                    current,
-                    status,
-                    cycle
-                })
-            ),
-        ]
-    }
-
-    proptest! {
-        #![proptest_config(ProptestConfig { cases: 5000, rng_seed: RngSeed::Fixed(0xCA11), failure_persistence: None, ..ProptestConfig::default() })]
-
-        #[test]
-        fn every_message_round_trips(m in message()) {
-            let f = encode(&m).unwrap();
-            prop_assert_eq!(decode(&f), Ok(m));
-        }
-
-        #[test]
-        fn any_frame_decodes_or_errs_without_panicking(id in 0u16..0x800, data in proptest::collection::vec(any::<u8>(), 0..=8)) {
-            let f = CanFrame::new(id, &data).unwrap();
-            if let Ok(m) = decode(&f) {
-                prop_assert_eq!(encode(&m).unwrap(), f);
-            }
-        }
-    }
-}
+mod tests;

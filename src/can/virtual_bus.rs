@@ -3,7 +3,9 @@
 //! Any number of endpoints share one bus with broadcast semantics: every frame reaches every
 //! other endpoint (and the sender only if it asked to receive its own frames). Faults can be
 //! injected — latency, loss, corruption, bus-off — and a bit-accurate counter (real bit
-//! stuffing and CRC-15, not an estimate) reports the bus load.
+//! stuffing, not an estimate; for CAN FD frames the arbitration phase at the nominal and the
+//! data phase at the data bit rate, `crate::can::timing`) reports the time the wire was busy.
+//! A classic bus refuses FD frames, as a classic controller (or a vcan with MTU 16) does.
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -14,13 +16,14 @@ use tokio::sync::mpsc;
 use tokio::time::Instant;
 
 use super::bus::{BusError, BusEvent, CanBus, Filter, passes};
-use super::protocol::CanFrame;
+use super::frame::{CanFrame, Framing};
+use super::timing::{BusTiming, exact_bits};
 
 /// Fault injection and timing of a virtual bus.
 #[derive(Debug, Clone, PartialEq)]
 pub struct VirtualConfig {
-    /// Bit rate, bit/s (for the load figure).
-    pub bitrate: f64,
+    /// Framing and bit rates (for the wire time; a classic bus refuses FD frames).
+    pub timing: BusTiming,
     /// Delivery delay of every frame (resolved to tokio's 1 ms timer).
     pub latency: Duration,
     /// Probability (0…1) that a frame is lost.
@@ -34,7 +37,7 @@ pub struct VirtualConfig {
 impl Default for VirtualConfig {
     fn default() -> Self {
         Self {
-            bitrate: 1e6,
+            timing: BusTiming::classic(1e6),
             latency: Duration::ZERO,
             loss: 0.0,
             corrupt: 0.0,
@@ -50,6 +53,8 @@ pub struct BusStats {
     pub frames: u64,
     /// Exact bits on the wire, stuffing and interframe space included.
     pub bits: u64,
+    /// Time the wire was busy with them, s (FD data phases at the data bit rate).
+    pub wire_s: f64,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -158,8 +163,12 @@ impl CanBus for VirtualEndpoint {
         if s.bus_off {
             return Err(BusError::BusOff);
         }
+        if frame.is_fd() && s.cfg.timing.framing != Framing::Fd {
+            return Err(BusError::FdUnsupported);
+        }
         s.stats.frames += 1;
-        s.stats.bits += exact_frame_bits(&frame) as u64;
+        s.stats.bits += exact_bits(&frame).total() as u64;
+        s.stats.wire_s += s.cfg.timing.frame_time_s(&frame);
         let (loss, corrupt, latency) = (s.cfg.loss, s.cfg.corrupt, s.cfg.latency);
         if loss > 0.0 && s.rng.random::<f64>() < loss {
             return Ok(());
@@ -167,10 +176,10 @@ impl CanBus for VirtualEndpoint {
         let mut delivered = frame;
         if corrupt > 0.0 && frame.dlc() > 0 && s.rng.random::<f64>() < corrupt {
             let bit = s.rng.random_range(0..frame.dlc() * 8);
-            let mut d = [0u8; 8];
+            let mut d = [0u8; 64];
             d[..frame.dlc()].copy_from_slice(frame.data());
             d[bit / 8] ^= 1 << (bit % 8);
-            delivered = CanFrame::new(frame.id(), &d[..frame.dlc()]).unwrap_or(frame);
+            delivered = frame.with_data(&d[..frame.dlc()]).unwrap_or(frame);
         }
         let at = Instant::now() + latency;
         for (i, slot) in s.slots.iter().enumerate() {
@@ -216,81 +225,9 @@ impl CanBus for VirtualEndpoint {
     }
 }
 
-/// CRC-15/CAN of a bit sequence.
-fn crc15(bits: &[bool]) -> u16 {
-    let mut crc: u16 = 0;
-    for &b in bits {
-        let next = b ^ ((crc >> 14) & 1 == 1);
-        crc = (crc << 1) & 0x7FFF;
-        if next {
-            crc ^= 0x4599;
-        }
-    }
-    crc
-}
-
-/// Exact length on the wire of a standard data frame, bits: SOF … CRC with the bit stuffing
-/// this very frame needs, then CRC delimiter, ACK slot and delimiter, EOF and the 3-bit
-/// interframe space.
-pub fn exact_frame_bits(f: &CanFrame) -> u32 {
-    let mut bits: Vec<bool> = Vec::with_capacity(128);
-    bits.push(false); // SOF
-    for i in (0..11).rev() {
-        bits.push((f.id() >> i) & 1 == 1);
-    }
-    bits.extend([false, false, false]); // RTR, IDE, r0
-    for i in (0..4).rev() {
-        bits.push((f.dlc() >> i) & 1 == 1);
-    }
-    for byte in f.data() {
-        for i in (0..8).rev() {
-            bits.push((byte >> i) & 1 == 1);
-        }
-    }
-    let crc = crc15(&bits);
-    for i in (0..15).rev() {
-        bits.push((crc >> i) & 1 == 1);
-    }
-    let (mut stuffed, mut run, mut last) = (0u32, 0u32, None);
-    for &b in &bits {
-        if Some(b) == last {
-            run += 1;
-        } else {
-            run = 1;
-            last = Some(b);
-        }
-        if run == 5 {
-            stuffed += 1;
-            last = Some(!b);
-            run = 1;
-        }
-    }
-    bits.len() as u32 + stuffed + 1 + 2 + 7 + 3
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::can::protocol::{frame_bits_nominal, frame_bits_worst};
-
-    #[test]
-    fn exact_bits_lie_between_nominal_and_worst_case() {
-        for dlc in 0..=8 {
-            for pattern in [0x00u8, 0xFF, 0x55, 0x0F] {
-                let f = CanFrame::new(0x7FF & (0x555 + dlc as u16), &vec![pattern; dlc]).unwrap();
-                let b = exact_frame_bits(&f);
-                assert!(
-                    b >= frame_bits_nominal(dlc) && b <= frame_bits_worst(dlc),
-                    "dlc {dlc} {pattern:#x}: {b}"
-                );
-            }
-        }
-        // all-zero payloads stuff a bit every four: clearly more than nominal
-        let zeros = CanFrame::new(0x000, &[0; 8]).unwrap();
-        assert!(exact_frame_bits(&zeros) > frame_bits_nominal(8) + 15);
-        // CRC-15 of the empty message is 0
-        assert_eq!(crc15(&[]), 0);
-    }
 
     #[tokio::test(start_paused = true)]
     async fn broadcast_own_frames_filters_latency_loss_and_bus_off() {
@@ -343,6 +280,13 @@ mod tests {
         let s = bus.stats();
         assert_eq!(s.frames, 4);
         assert!(s.bits >= 3 * 111 + 63);
+        assert!(
+            (s.wire_s - s.bits as f64 / 1e6).abs() < 1e-12,
+            "all at 1 Mbit/s"
+        );
+        // a classic bus refuses FD frames
+        let fd = CanFrame::new_fd(0x180, &[0; 48], true).unwrap();
+        assert_eq!(a.send(fd).await, Err(BusError::FdUnsupported));
         // bus-off
         bus.set_bus_off(true);
         assert_eq!(
@@ -377,5 +321,51 @@ mod tests {
             .map(|(x, y)| (x ^ y).count_ones())
             .sum();
         assert_eq!(flipped, 1);
+    }
+}
+
+#[cfg(test)]
+mod fd_tests {
+    use super::*;
+
+    #[tokio::test(start_paused = true)]
+    async fn an_fd_bus_carries_both_formats_and_times_the_data_phase_at_its_rate() {
+        let bus = VirtualBus::new(VirtualConfig {
+            timing: BusTiming::fd(1e6, 5e6),
+            corrupt: 1.0,
+            ..Default::default()
+        });
+        let mut a = bus.endpoint(false);
+        let mut b = bus.endpoint(false);
+        let fd = CanFrame::new_fd(0x180, &[0x33; 48], true).unwrap();
+        a.send(fd).await.unwrap();
+        a.send(CanFrame::new(0x080, &[1, 0]).unwrap())
+            .await
+            .unwrap();
+        let Ok(BusEvent::Frame(g)) = b.recv(Duration::from_millis(1)).await else {
+            panic!("the FD frame arrives")
+        };
+        // corrupted in one bit of its 48 bytes, still an FD frame with the switch
+        assert!(g.is_fd() && g.brs() && g.dlc() == 48);
+        let flipped: u32 = g
+            .data()
+            .iter()
+            .zip(fd.data())
+            .map(|(x, y)| (x ^ y).count_ones())
+            .sum();
+        assert_eq!(flipped, 1);
+        assert!(
+            matches!(b.recv(Duration::from_millis(1)).await, Ok(BusEvent::Frame(f)) if !f.is_fd())
+        );
+        let s = bus.stats();
+        let (fd_bits, sync_bits) = (
+            exact_bits(&fd),
+            exact_bits(&CanFrame::new(0x080, &[1, 0]).unwrap()),
+        );
+        assert_eq!(s.bits, (fd_bits.total() + sync_bits.total()) as u64);
+        let want = fd_bits.nominal as f64 / 1e6
+            + fd_bits.data as f64 / 5e6
+            + sync_bits.total() as f64 / 1e6;
+        assert!((s.wire_s - want).abs() < 1e-12, "{} vs {want}", s.wire_s);
     }
 }
