@@ -50,7 +50,55 @@ fn a_real_dbc_tool_decodes_captured_frames_like_the_codec() {
             cycle: 0,
         }),
     ];
-    let dir = std::env::temp_dir().join(format!("pa10-dbc-{}", std::process::id()));
+    check_with_cantools("pa10.dbc", &messages);
+}
+
+/// The FD variant (`docs/pa10-fd.dbc`): COMMAND_FD and FEEDBACK_FD as cantools reads CAN FD
+/// frames from a candump log (`ID##1DATA`), and the classic frames an FD bus carries too.
+#[test]
+fn a_real_dbc_tool_decodes_captured_fd_frames_like_the_codec() {
+    let commands: [AxisCommand; 6] = std::array::from_fn(|j| AxisCommand {
+        axis: j as u8 + 1,
+        mode: if j == 2 {
+            mode::SERVO | mode::DEADMAN
+        } else {
+            mode::SERVO
+        },
+        cycle: 77,
+        speed: [32_767, -32_768, 5000, -1, 0, 1234][j],
+        torque: [0, 1, -1, 32_767, -32_768, 99][j],
+    });
+    let feedback: [Feedback; 6] = std::array::from_fn(|j| Feedback {
+        axis: j as u8 + 1,
+        angle: [i32::MIN, i32::MAX, 819_200, -1, 0, 123_456][j],
+        current: [-32_768, 32_767, 1500, -1500, 0, 7][j],
+        status: [
+            status::SERVO_ON,
+            status::BRAKE_ON | status::FAULT,
+            status::LIMIT,
+            status::WATCHDOG,
+            status::DEADMAN,
+            0,
+        ][j],
+        cycle: 255,
+    });
+    let messages = [
+        Message::Sync { cycle: 513 },
+        Message::CommandFd(commands),
+        Message::FeedbackFd(feedback),
+        Message::State {
+            state: ServoState::Control,
+            fault: FaultCode::None,
+            cycle: 513,
+        },
+    ];
+    check_with_cantools("pa10-fd.dbc", &messages);
+}
+
+/// Encodes `messages`, writes them as a candump log, has cantools decode it with
+/// `docs/{dbc}` and compares every signal with the codec's values.
+fn check_with_cantools(dbc: &str, messages: &[Message]) {
+    let dir = std::env::temp_dir().join(format!("pa10-{dbc}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let mut log = String::new();
     let mut expected = Vec::new();
@@ -79,7 +127,7 @@ fn a_real_dbc_tool_decodes_captured_frames_like_the_codec() {
     let root = env!("CARGO_MANIFEST_DIR");
     let out = std::process::Command::new("python3")
         .arg(format!("{root}/tests/dbc/check_dbc.py"))
-        .arg(format!("{root}/docs/pa10.dbc"))
+        .arg(format!("{root}/docs/{dbc}"))
         .arg(dir.join("capture.log"))
         .arg(dir.join("expected.json"))
         .output();

@@ -3,6 +3,9 @@
 produced (a JSON list of {"id": int, "signals": {name: value}}, one per log line).
 
     python3 tests/dbc/check_dbc.py docs/pa10.dbc capture.log expected.json
+    python3 tests/dbc/check_dbc.py docs/pa10-fd.dbc capture-fd.log expected.json
+
+CAN FD frames (`ID##FDATA`) must be FD messages in the DBC, classic ones classic.
 
 Exit 0 when every frame decodes to the same values (1e-9 relative), 1 with the differences
 otherwise, 3 when cantools is not installed.
@@ -28,7 +31,15 @@ def main():
     bad = 0
     for line, exp in zip(lines, want):
         frame = line.split()[2]
-        ident, data = frame.split("#")
+        ident, data = frame.split("#", 1)
+        if data.startswith("#"):
+            # CAN FD (candump's ID##FDATA): one hex digit of flags, then the data
+            data = data[2:]
+        msg = db.get_message_by_frame_id(int(ident, 16))
+        if msg.is_fd != (frame.count("#") == 2):
+            print(f"{line}: the DBC has {msg.name} as {'an FD' if msg.is_fd else 'a classic'} frame", file=sys.stderr)
+            bad += 1
+            continue
         got = db.decode_message(int(ident, 16), bytes.fromhex(data), decode_choices=False)
         for name, value in exp["signals"].items():
             g = got.get(name)
