@@ -3,6 +3,7 @@
 
 mod accuracy;
 mod calibration;
+mod canfd;
 mod cli;
 mod common;
 mod control;

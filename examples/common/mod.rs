@@ -7,11 +7,22 @@ use pa10::sim::rig::SimulatedArm;
 use serde_json::Value;
 
 /// `config/sim.yaml` at `rate_hz`, with a private socket path.
+#[allow(dead_code)] // not every example runs on classic CAN alone
 pub fn sim_config(rate_hz: f64, tag: &str) -> Settings {
+    sim_config_on(rate_hz, tag, None)
+}
+
+/// [`sim_config`] on CAN FD with a `data_bitrate` (bit/s) data phase when given.
+pub fn sim_config_on(rate_hz: f64, tag: &str, fd_data_bitrate: Option<f64>) -> Settings {
     let base = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
     let text = std::fs::read_to_string(base.join("sim.yaml")).expect("config/sim.yaml");
     let sock = std::env::temp_dir().join(format!("pa10-{tag}-{}.sock", std::process::id()));
+    let bus = match fd_data_bitrate {
+        Some(d) => format!("bus:\n  fd: true\n  data_bitrate: {d}\n"),
+        None => "bus:\n".to_string(),
+    };
     let t = text
+        .replace("bus:\n", &bus)
         .replace("rate_hz: 500", &format!("rate_hz: {rate_hz}"))
         .replace(
             "socket: /tmp/pa10d-sim.sock",
@@ -59,7 +70,8 @@ impl Served {
     pub fn start(cfg: &mut Settings, fifo: bool, path: &std::path::Path) -> Self {
         cfg.realtime.sched_fifo_priority = fifo.then_some(80);
         let (truth, seed) = pa10::sim::rig::truth_for(cfg).expect("truth");
-        let arm = SimulatedArm::start_with_priority(truth, seed, fifo.then_some(81)).expect("arm");
+        let arm =
+            SimulatedArm::start_on(truth, seed, fifo.then_some(81), cfg.bus.timing()).expect("arm");
         let daemon = Daemon::start(cfg, arm.host()).expect("daemon");
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)

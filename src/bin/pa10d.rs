@@ -61,7 +61,7 @@ fn check(path: &Path) -> Result<()> {
         .map(|j| format!("J{}", j + 1))
         .collect();
     println!("{}: valid", path.display());
-    println!("  bus: {bus}, {:.0} kbit/s", s.bus.bitrate / 1e3);
+    println!("  bus: {bus}, {}", s.bus.timing().describe());
     println!(
         "  cycle: {} Hz, worst-case bus load {:.1} % (limit {:.1} %)",
         s.rate_hz,
@@ -96,7 +96,13 @@ fn run(path: &Path) -> Result<()> {
         .with_env_filter(filter)
         .with_writer(stderr)
         .init();
-    tracing::info!(config = %path.display(), rate_hz = loaded.rate_hz, "starting");
+    tracing::info!(
+        config = %path.display(),
+        rate_hz = loaded.rate_hz,
+        bus = %loaded.bus.timing().describe(),
+        bus_load_pct = loaded.bus_load * 100.0,
+        "starting"
+    );
     // One daemon per socket: claimed before the bus is touched.
     let _claim = pa10::daemon::api::SocketLock::claim(&loaded.api.socket)
         .map_err(anyhow::Error::msg)
@@ -112,7 +118,8 @@ fn run(path: &Path) -> Result<()> {
             #[cfg(target_os = "linux")]
             {
                 let iface = loaded.bus.interface.clone().unwrap_or_default();
-                let bus = pa10::can::socketcan_bus::SocketCanBus::open(&iface)
+                let framing = loaded.bus.timing().framing;
+                let bus = pa10::can::socketcan_bus::SocketCanBus::open_with(&iface, framing)
                     .with_context(|| format!("opening {iface}"))?;
                 let d = Daemon::start(&loaded, bus).context("starting the control loop")?;
                 (d, None)

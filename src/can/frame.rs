@@ -13,6 +13,7 @@ pub const FD_LENGTHS: [usize; 16] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 12, 16, 20, 24, 
 /// The frame format of a bus's cyclic traffic (COMMAND and FEEDBACK; CONTROL, STATE, SYNC and
 /// ERROR are classic frames on both).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "record", derive(schemars::JsonSchema))]
 #[serde(rename_all = "lowercase")]
 pub enum Framing {
     /// Classic CAN: six COMMAND and six FEEDBACK frames of 8 bytes per cycle.

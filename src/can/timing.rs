@@ -265,19 +265,40 @@ impl BusTiming {
     /// COMMAND and six FEEDBACK frames of 8 bytes; FD, one COMMAND_FD (32 bytes) and one
     /// FEEDBACK_FD (48 bytes).
     pub fn cycle_time_worst_s(&self) -> f64 {
-        let sync = frame_bits_worst(2) as f64 / self.bitrate;
+        self.load(1.0)
+    }
+
+    /// Worst-case bits of one control cycle by phase (classic: all `nominal`).
+    fn cycle_bits(&self) -> FdBits {
+        let sync = frame_bits_worst(2);
         match self.framing {
-            Framing::Classic => sync + 12.0 * frame_bits_worst(8) as f64 / self.bitrate,
+            Framing::Classic => FdBits {
+                nominal: sync + 12 * frame_bits_worst(8),
+                data: 0,
+            },
             Framing::Fd => {
-                sync + self.seconds(fd_frame_bits_worst(super::protocol::COMMAND_FD_LEN))
-                    + self.seconds(fd_frame_bits_worst(super::protocol::FEEDBACK_FD_LEN))
+                let (c, f) = (
+                    fd_frame_bits_worst(super::protocol::COMMAND_FD_LEN),
+                    fd_frame_bits_worst(super::protocol::FEEDBACK_FD_LEN),
+                );
+                FdBits {
+                    nominal: sync + c.nominal + f.nominal,
+                    data: c.data + f.data,
+                }
             }
         }
     }
 
-    /// Worst-case bus load (0…1+) of the cyclic traffic at `rate_hz`.
+    /// Worst-case bus load (0…1+) of the cyclic traffic at `rate_hz` (bits per second over
+    /// each phase's bit rate, so that 500 Hz on 1 Mbit/s is exactly 0.8475).
     pub fn load(&self, rate_hz: f64) -> f64 {
-        rate_hz * self.cycle_time_worst_s()
+        let b = self.cycle_bits();
+        let data_rate = if self.brs() {
+            self.data_bitrate
+        } else {
+            self.bitrate
+        };
+        rate_hz * b.nominal as f64 / self.bitrate + rate_hz * b.data as f64 / data_rate
     }
 
     /// The highest cycle rate whose worst-case load stays within `limit` (0…1), Hz.

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use super::control::LoopParams;
 use super::link::LinkConfig;
 use super::vocab::Limits;
-use crate::can::protocol::check_rate;
+use crate::can::BusTiming;
 use crate::model::Model;
 use crate::record::RecordConfig;
 
@@ -38,9 +38,18 @@ pub struct BusConfig {
     /// SocketCAN interface (e.g. `can0`); required with `socketcan`.
     #[serde(default)]
     pub interface: Option<String>,
-    /// Bit rate, bit/s (the interface's, configured by the system).
+    /// Bit rate, bit/s (the interface's, configured by the system); on CAN FD the nominal
+    /// (arbitration-phase) rate.
     #[serde(default = "default_bitrate")]
     pub bitrate: f64,
+    /// CAN FD: one COMMAND_FD and one FEEDBACK_FD frame a cycle instead of six of each
+    /// (`docs/protocol.md`); the interface must be in FD mode (MTU 72). Default false.
+    #[serde(default)]
+    pub fd: bool,
+    /// CAN FD data-phase bit rate, bit/s (frames switch to it after arbitration); only with
+    /// `fd: true`; absent: `bitrate` (no faster data phase).
+    #[serde(default)]
+    pub data_bitrate: Option<f64>,
     /// Largest accepted worst-case bus load of the cyclic traffic, 0…1.
     #[serde(default = "default_max_load")]
     pub max_load: f64,
@@ -48,6 +57,17 @@ pub struct BusConfig {
 
 fn default_bitrate() -> f64 {
     1e6
+}
+
+impl BusConfig {
+    /// The bus's framing and bit rates.
+    pub fn timing(&self) -> BusTiming {
+        if self.fd {
+            BusTiming::fd(self.bitrate, self.data_bitrate.unwrap_or(self.bitrate))
+        } else {
+            BusTiming::classic(self.bitrate)
+        }
+    }
 }
 fn default_max_load() -> f64 {
     0.9
@@ -378,7 +398,23 @@ impl Config {
                 format!("must be within (0, 1], got {}", c.bus.max_load),
             ));
         }
-        let bus_load = check_rate(c.control.rate_hz, c.bus.bitrate, c.bus.max_load)
+        if c.bus.data_bitrate.is_some() && !c.bus.fd {
+            return Err(invalid(
+                "bus.data_bitrate",
+                "is CAN FD's data-phase rate: set bus.fd: true, or remove it",
+            ));
+        }
+        let timing = c.bus.timing();
+        timing.validate().map_err(|r| {
+            let key = if r.starts_with("data_bitrate") {
+                "bus.data_bitrate"
+            } else {
+                "bus.bitrate"
+            };
+            invalid(key, r)
+        })?;
+        let bus_load = timing
+            .check_rate(c.control.rate_hz, c.bus.max_load)
             .map_err(|r| invalid("control.rate_hz", r))?;
         if !(c.control.position_gain.is_finite()
             && c.control.position_gain > 0.0
@@ -546,6 +582,7 @@ impl Config {
         } = self;
         record.dir = base.join(&record.dir);
         let period_s = 1.0 / control.rate_hz;
+        let framing = bus.timing().framing;
         let loop_params = LoopParams {
             period_s,
             gain: control.position_gain,
@@ -571,7 +608,7 @@ impl Config {
             bus_load,
             rate_hz: control.rate_hz,
             control: loop_params,
-            link: LinkConfig::new(period_s, watchdog_ms),
+            link: LinkConfig::new(period_s, watchdog_ms).with_framing(framing),
             realtime: control.realtime,
             model_path,
             model,

@@ -66,6 +66,13 @@ pub struct CycleStats {
     pub jitter_us: [f64; 3],
     /// Compute time of a cycle (receive → commands sent), p50 / p99 / max, µs.
     pub compute_us: [f64; 3],
+    /// The configured cycle rate, Hz.
+    #[serde(default)]
+    pub rate_hz: f64,
+    /// The cyclic frames' format: `classic` (six COMMAND and six FEEDBACK frames a cycle) or
+    /// `fd` (one COMMAND_FD and one FEEDBACK_FD).
+    #[serde(default)]
+    pub framing: crate::can::Framing,
     /// Worst-case bus load of the configured rate, %.
     pub bus_load_pct: f64,
     /// Times the control thread found the core's lock held by a client and waited.

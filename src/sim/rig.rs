@@ -63,6 +63,15 @@ pub fn truth_for(settings: &Settings) -> Result<(TrueRobot, u64), RigError> {
     Ok((truth_from_config(&sim)?, sim.seed))
 }
 
+/// The simulated controller's parameters for validated settings: the defaults, speaking the
+/// configured bus's framing.
+pub fn servo_config(settings: &Settings) -> ServoConfig {
+    ServoConfig {
+        framing: settings.bus.timing().framing,
+        ..ServoConfig::default()
+    }
+}
+
 /// The simulated controller running in real time on a virtual bus.
 pub struct SimulatedArm {
     servo: SharedServo,
@@ -85,13 +94,26 @@ impl SimulatedArm {
         seed: u64,
         priority: Option<u8>,
     ) -> Result<Self, RigError> {
-        let bus = VirtualBus::new(VirtualConfig::default());
-        let servo = Arc::new(Mutex::new(ServoSim::new(
-            truth,
-            ServoConfig::default(),
-            HOME,
-            seed,
-        )));
+        Self::start_on(truth, seed, priority, crate::can::BusTiming::classic(1e6))
+    }
+
+    /// [`SimulatedArm::start_with_priority`] on a virtual bus of `timing` (classic or CAN FD;
+    /// the controller speaks its framing).
+    pub fn start_on(
+        truth: TrueRobot,
+        seed: u64,
+        priority: Option<u8>,
+        timing: crate::can::BusTiming,
+    ) -> Result<Self, RigError> {
+        let bus = VirtualBus::new(VirtualConfig {
+            timing,
+            ..VirtualConfig::default()
+        });
+        let cfg = ServoConfig {
+            framing: timing.framing,
+            ..ServoConfig::default()
+        };
+        let servo = Arc::new(Mutex::new(ServoSim::new(truth, cfg, HOME, seed)));
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("pa10-sim")
@@ -124,12 +146,17 @@ impl SimulatedArm {
     /// The arm validated daemon settings describe (their `sim` section).
     pub fn from_config(settings: &Settings) -> Result<Self, RigError> {
         let (truth, seed) = truth_for(settings)?;
-        Self::start(truth, seed)
+        Self::start_on(truth, seed, None, settings.bus.timing())
     }
 
     /// A new endpoint on the arm's bus, for the host (the daemon).
     pub fn host(&self) -> VirtualEndpoint {
         self.bus.endpoint(false)
+    }
+
+    /// The bus's traffic so far (frames, exact bits, wire time).
+    pub fn bus_stats(&self) -> crate::can::virtual_bus::BusStats {
+        self.bus.stats()
     }
 
     /// The simulated controller: ground truth and fault injection.
@@ -162,6 +189,22 @@ pub struct Lockstep {
     to_servo: VecDeque<(f64, CanFrame)>,
     to_host: VecDeque<(f64, CanFrame)>,
     out: Vec<CanFrame>,
+    wire: Option<Wire>,
+}
+
+/// The shared wire of a [`Lockstep`] run with wire timing ([`Lockstep::with_wire`]): frames
+/// are sent one after another, each taking its exact time at the bus's bit rates, and reach
+/// the other side `latency_s` after their end.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Wire {
+    /// Framing and bit rates.
+    pub timing: crate::can::BusTiming,
+    /// From a frame's last bit to the receiver acting on it (interrupt, driver, code), s.
+    pub latency_s: f64,
+    /// When the wire is next free, s.
+    free_at: f64,
+    /// Time it was busy, s.
+    busy_s: f64,
 }
 
 impl Lockstep {
@@ -181,6 +224,41 @@ impl Lockstep {
             to_servo: VecDeque::new(),
             to_host: VecDeque::new(),
             out: Vec::with_capacity(16),
+            wire: None,
+        }
+    }
+
+    /// Models the bus: every frame waits for the wire, takes its exact time on it at
+    /// `timing`'s rates (classic, or FD's two phases) and arrives `latency_s` after its last
+    /// bit, instead of a fixed [`Lockstep::LATENCY_S`].
+    pub fn with_wire(mut self, timing: crate::can::BusTiming, latency_s: f64) -> Self {
+        self.wire = Some(Wire {
+            timing,
+            latency_s,
+            free_at: 0.0,
+            busy_s: 0.0,
+        });
+        self
+    }
+
+    /// The share of the simulated time the modelled wire was busy (0…1), `None` without
+    /// [`Lockstep::with_wire`].
+    pub fn wire_load(&self) -> Option<f64> {
+        self.wire
+            .map(|w| w.busy_s / self.now.max(f64::MIN_POSITIVE))
+    }
+
+    /// When a frame sent at `now` arrives at the other side, s.
+    fn arrival(&mut self, now: f64, f: &CanFrame) -> f64 {
+        match &mut self.wire {
+            None => now + Self::LATENCY_S,
+            Some(w) => {
+                let t = w.timing.frame_time_s(f);
+                let end = now.max(w.free_at) + t;
+                w.free_at = end;
+                w.busy_s += t;
+                end + w.latency_s
+            }
         }
     }
 
@@ -188,7 +266,7 @@ impl Lockstep {
     /// at [`HOME`].
     pub fn from_config(settings: &Settings) -> Result<Self, RigError> {
         let (truth, seed) = truth_for(settings)?;
-        let servo = ServoSim::new(truth, ServoConfig::default(), HOME, seed);
+        let servo = ServoSim::new(truth, servo_config(settings), HOME, seed);
         Ok(Self::new(Core::from_config(settings), servo))
     }
 
@@ -263,12 +341,18 @@ impl Lockstep {
             } else {
                 lock(&self.core).handle_timeout(now);
             }
-            for f in self.out.drain(..) {
-                self.to_host.push_back((now + Self::LATENCY_S, f));
+            let mut out = std::mem::take(&mut self.out);
+            for f in out.drain(..) {
+                let at = self.arrival(now, &f);
+                self.to_host.push_back((at, f));
             }
-            let mut core = lock(&self.core);
-            while let Some(f) = core.poll_transmit() {
-                self.to_servo.push_back((now + Self::LATENCY_S, f));
+            self.out = out;
+            loop {
+                let Some(f) = lock(&self.core).poll_transmit() else {
+                    break;
+                };
+                let at = self.arrival(now, &f);
+                self.to_servo.push_back((at, f));
             }
         }
     }

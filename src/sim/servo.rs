@@ -23,8 +23,8 @@ use super::TrueRobot;
 use super::plant::{Drive, ModelPlant, Plant};
 use crate::can::bus::{BusError, BusEvent, CanBus};
 use crate::can::protocol::{
-    self, AxisCommand, CanFrame, ErrorCode, FaultCode, Feedback, Message, Request, ServoState,
-    angle_counts, current_counts, mode, status,
+    self, AxisCommand, CanFrame, ErrorCode, FaultCode, Feedback, Framing, Message, Request,
+    ServoState, angle_counts, current_counts, mode, status,
 };
 use crate::model::Frame as Pose;
 
@@ -52,6 +52,9 @@ pub struct ServoConfig {
     pub heartbeat_s: f64,
     /// Deceleration of a controlled stop, rad/s².
     pub stop_decel: f64,
+    /// The feedback's format: six FEEDBACK frames or one FEEDBACK_FD per SYNC. Commands are
+    /// taken in either format.
+    pub framing: Framing,
 }
 
 impl Default for ServoConfig {
@@ -73,6 +76,7 @@ impl Default for ServoConfig {
             watchdog_s: 0.05,
             heartbeat_s: 0.1,
             stop_decel: 2.0,
+            framing: Framing::Classic,
         }
     }
 }
@@ -322,6 +326,10 @@ impl ServoSim {
             }
             Message::Sync { cycle } => self.feedback(cycle, out),
             Message::Command(c) => self.command(c, out),
+            Message::CommandFd(cmds) if self.state == ServoState::Control && !self.stopping => {
+                self.pending = [None; 6];
+                self.apply(cmds, out);
+            }
             _ => {}
         }
     }
@@ -393,31 +401,37 @@ impl ServoSim {
         {
             let cmds: [AxisCommand; 6] = std::array::from_fn(|j| self.pending[j].unwrap_or(c));
             self.pending = [None; 6];
-            self.last_command_s = self.now;
-            self.applied_cycle = (self.applied_cycle & 0xFF00) | cycle as u16;
-            self.deadman = cmds.iter().any(|c| c.mode & mode::DEADMAN != 0);
-            if cmds.iter().any(|c| c.mode & mode::TORQUE != 0) {
-                self.push(
-                    Message::Error {
-                        code: ErrorCode::Rejected,
-                        axis: 0,
-                        detail: 0,
-                    },
-                    out,
-                );
-                self.begin_stop();
-                return;
-            }
-            if cmds
-                .iter()
-                .any(|c| c.mode & mode::SERVO == 0 || c.mode & mode::BRAKE != 0)
-            {
-                self.begin_stop();
-                return;
-            }
-            for (j, c) in cmds.iter().enumerate() {
-                self.target[j] = c.speed_rad_s();
-            }
+            self.apply(cmds, out);
+        }
+    }
+
+    /// A complete command set of one cycle (six COMMAND frames, or one COMMAND_FD).
+    fn apply(&mut self, cmds: [AxisCommand; 6], out: &mut Vec<CanFrame>) {
+        let cycle = cmds[0].cycle;
+        self.last_command_s = self.now;
+        self.applied_cycle = (self.applied_cycle & 0xFF00) | cycle as u16;
+        self.deadman = cmds.iter().any(|c| c.mode & mode::DEADMAN != 0);
+        if cmds.iter().any(|c| c.mode & mode::TORQUE != 0) {
+            self.push(
+                Message::Error {
+                    code: ErrorCode::Rejected,
+                    axis: 0,
+                    detail: 0,
+                },
+                out,
+            );
+            self.begin_stop();
+            return;
+        }
+        if cmds
+            .iter()
+            .any(|c| c.mode & mode::SERVO == 0 || c.mode & mode::BRAKE != 0)
+        {
+            self.begin_stop();
+            return;
+        }
+        for (j, c) in cmds.iter().enumerate() {
+            self.target[j] = c.speed_rad_s();
         }
     }
 
@@ -445,7 +459,8 @@ impl ServoSim {
         if self.deadman {
             st |= status::DEADMAN;
         }
-        for j in 0..6 {
+        let mut set = [None; 6];
+        for (j, slot) in set.iter_mut().enumerate() {
             let axis = j as u8 + 1;
             if self.injected.mute_axis == Some(axis) {
                 continue;
@@ -465,14 +480,26 @@ impl ServoSim {
                 + self.injected.current_offset_a[j]
                 + self.cfg.current_noise_a * gauss(&mut self.rng))
             .clamp(-self.cfg.current_limit_a[j], self.cfg.current_limit_a[j]);
-            let fb = Feedback {
+            *slot = Some(Feedback {
                 axis,
                 angle: counts,
                 current: current_counts(current),
                 status: st,
                 cycle: cycle as u8,
-            };
-            self.push(Message::Feedback(fb), out);
+            });
+        }
+        match self.cfg.framing {
+            Framing::Classic => {
+                for fb in set.into_iter().flatten() {
+                    self.push(Message::Feedback(fb), out);
+                }
+            }
+            // one frame for all six axes: an axis that does not answer withholds it
+            Framing::Fd => {
+                if let [Some(a), Some(b), Some(c), Some(d), Some(e), Some(f)] = set {
+                    self.push(Message::FeedbackFd([a, b, c, d, e, f]), out);
+                }
+            }
         }
     }
 }

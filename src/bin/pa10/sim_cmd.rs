@@ -63,6 +63,10 @@ pub struct SimRunArgs {
     /// Stop after this many seconds (default: run until Ctrl-C).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     duration: Option<f64>,
+    /// Speak CAN FD (one FEEDBACK_FD frame a cycle; COMMAND_FD or COMMAND taken) on an FD
+    /// interface (MTU 72), as the daemon does with `bus.fd: true`.
+    #[arg(long)]
+    fd: bool,
 }
 
 /// Arguments of `pa10 sim measure`.
@@ -87,6 +91,9 @@ pub struct ReplayArgs {
     can: String,
     /// The candump log.
     file: PathBuf,
+    /// Open the interface for CAN FD (needed when the log holds FD frames).
+    #[arg(long)]
+    fd: bool,
 }
 
 /// `pa10 sim …`.
@@ -109,14 +116,19 @@ fn runtime() -> Result<tokio::runtime::Runtime> {
 
 /// Opens a SocketCAN interface (Linux only).
 #[cfg(target_os = "linux")]
-fn open_can(iface: &str) -> Result<pa10::can::socketcan_bus::SocketCanBus> {
-    pa10::can::socketcan_bus::SocketCanBus::open(iface).with_context(|| {
+fn open_can(iface: &str, fd: bool) -> Result<pa10::can::socketcan_bus::SocketCanBus> {
+    let framing = if fd {
+        pa10::can::Framing::Fd
+    } else {
+        pa10::can::Framing::Classic
+    };
+    pa10::can::socketcan_bus::SocketCanBus::open_with(iface, framing).with_context(|| {
         format!("opening CAN interface {iface} (is it up? `ip link set up {iface}`)")
     })
 }
 
 #[cfg(not(target_os = "linux"))]
-fn open_can(iface: &str) -> Result<pa10::can::VirtualEndpoint> {
+fn open_can(iface: &str, _fd: bool) -> Result<pa10::can::VirtualEndpoint> {
     anyhow::bail!("{iface}: SocketCAN needs Linux")
 }
 
@@ -144,7 +156,15 @@ fn run_sim(a: &SimRunArgs) -> Result<()> {
         }
     };
     let home = [0.0, 0.5, 1.2, 0.0, 0.9, 0.0];
-    let mut servo_sim = ServoSim::new(truth, ServoConfig::default(), home, a.seed);
+    let cfg = ServoConfig {
+        framing: if a.fd {
+            pa10::can::Framing::Fd
+        } else {
+            pa10::can::Framing::Classic
+        },
+        ..ServoConfig::default()
+    };
+    let mut servo_sim = ServoSim::new(truth, cfg, home, a.seed);
     servo_sim.injected.mute_axis = a.mute_axis;
     for spec in &a.current_offset {
         let (axis, amps) = axis_value(spec, "--current-offset")?;
@@ -166,7 +186,7 @@ fn run_sim(a: &SimRunArgs) -> Result<()> {
     };
     let rt = runtime()?;
     rt.block_on(async {
-        let bus = open_can(iface)?;
+        let bus = open_can(iface, a.fd)?;
         let (tx, rx) = tokio::sync::watch::channel(false);
         let duration = a.duration;
         tokio::spawn(async move {
@@ -238,7 +258,7 @@ fn replay(a: &ReplayArgs) -> Result<()> {
     let entries = pa10::can::candump::read_log(&a.file)?;
     let rt = runtime()?;
     let n = rt.block_on(async {
-        let mut bus = open_can(&a.can)?;
+        let mut bus = open_can(&a.can, a.fd)?;
         pa10::can::candump::replay(&mut bus, &entries)
             .await
             .with_context(|| format!("sending on {}", a.can))

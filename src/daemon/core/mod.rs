@@ -101,6 +101,8 @@ impl Core {
             failure: None,
             last: None,
             stats: CycleStats {
+                rate_hz: 1.0 / link.period_s,
+                framing: link.framing,
                 bus_load_pct: bus_load * 100.0,
                 ..Default::default()
             },

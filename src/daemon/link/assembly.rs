@@ -1,6 +1,7 @@
 //! One cycle's frames: [`CycleAssembler`] gathers this cycle's six FEEDBACK frames into a
 //! [`JointState`] in SI units and counts everything else ([`LinkCounters`]);
-//! [`command_frames`] encodes the six COMMAND frames of a cycle's speeds. No allocation.
+//! [`command_frames`] encodes the six COMMAND frames of a cycle's speeds, [`command_frame_fd`]
+//! the one COMMAND_FD frame. No allocation.
 
 use crate::can::protocol::{self, AxisCommand, CanFrame, Message, status};
 use crate::daemon::vocab::JointState;
@@ -118,11 +119,20 @@ const EMPTY: CanFrame = match CanFrame::new_const(0, 0) {
     None => panic!(),
 };
 
+/// The six axes' speed-mode commands of cycle `cycle` (servo on, brake off; speeds in rad/s
+/// clamped to the field's range).
+fn commands(cycle: u16, speeds: &[f64; 6]) -> [AxisCommand; 6] {
+    std::array::from_fn(|j| AxisCommand::speed_saturating(j as u8 + 1, cycle as u8, speeds[j]))
+}
+
+/// The COMMAND_FD frame answering cycle `cycle` on CAN FD: the six commands of
+/// [`command_frames`] in one frame.
+pub fn command_frame_fd(cycle: u16, speeds: &[f64; 6]) -> CanFrame {
+    protocol::encode(&Message::CommandFd(commands(cycle, speeds))).unwrap_or(EMPTY)
+}
+
 /// The six COMMAND frames answering cycle `cycle`: speed mode, servo on, brake off;
 /// speeds (rad/s) are clamped to the field's range.
 pub fn command_frames(cycle: u16, speeds: &[f64; 6]) -> [CanFrame; 6] {
-    std::array::from_fn(|j| {
-        let c = AxisCommand::speed_saturating(j as u8 + 1, cycle as u8, speeds[j]);
-        protocol::encode(&Message::Command(c)).unwrap_or(EMPTY)
-    })
+    commands(cycle, speeds).map(|c| protocol::encode(&Message::Command(c)).unwrap_or(EMPTY))
 }

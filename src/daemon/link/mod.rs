@@ -7,7 +7,9 @@
 //! to be woken ([`Link::poll_timeout`], then [`Link::handle_timeout`]) and drains the frames
 //! it wants sent ([`Link::poll_transmit`]). What happened comes back as a [`LinkEvent`].
 //!
-//! A cycle is `SYNC(n)` → six `FEEDBACK(n)` → six `COMMAND(n)`. [`CycleAssembler`] keeps
+//! A cycle is `SYNC(n)` → six `FEEDBACK(n)` → six `COMMAND(n)` on classic CAN, `SYNC(n)` →
+//! `FEEDBACK_FD(n)` → `COMMAND_FD(n)` on CAN FD ([`LinkConfig::framing`]; feedback of either
+//! format is assembled, commands go out in the configured one). [`CycleAssembler`] keeps
 //! only this cycle's feedback and counts everything else (other cycles, undecodable frames,
 //! controller errors) instead of failing: a storm of malformed frames costs counters, never
 //! the loop. Nothing here allocates once the link is built.
@@ -15,10 +17,10 @@
 use std::collections::VecDeque;
 
 use super::vocab::JointState;
-pub use assembly::{CycleAssembler, LinkCounters, command_frames};
+pub use assembly::{CycleAssembler, LinkCounters, command_frame_fd, command_frames};
 
 mod assembly;
-use crate::can::protocol::{self, CanFrame, ErrorCode, Message, Request, ServoState};
+use crate::can::protocol::{self, CanFrame, ErrorCode, Framing, Message, Request, ServoState};
 
 /// Timing of the link, s.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,6 +41,8 @@ pub struct LinkConfig {
     pub priming_wait_s: f64,
     /// Attempts at a first complete feedback before giving up.
     pub priming_attempts: u16,
+    /// The cyclic frames' format: six classic COMMAND frames or one COMMAND_FD per cycle.
+    pub framing: Framing,
 }
 
 impl LinkConfig {
@@ -53,7 +57,13 @@ impl LinkConfig {
             feedback_window: 0.6,
             priming_wait_s: 0.005,
             priming_attempts: 20,
+            framing: Framing::Classic,
         }
+    }
+
+    /// The same timing with `framing`'s cyclic frames.
+    pub fn with_framing(self, framing: Framing) -> Self {
+        Self { framing, ..self }
     }
 }
 
@@ -340,7 +350,14 @@ impl Link {
     /// Answers the cycle whose feedback just closed with six speed commands (rad/s).
     pub fn send_commands(&mut self, speeds: &[f64; 6]) {
         if self.phase == Phase::Running {
-            self.tx.extend(command_frames(self.cycle, speeds));
+            self.queue_commands(speeds);
+        }
+    }
+
+    fn queue_commands(&mut self, speeds: &[f64; 6]) {
+        match self.cfg.framing {
+            Framing::Classic => self.tx.extend(command_frames(self.cycle, speeds)),
+            Framing::Fd => self.tx.push_back(command_frame_fd(self.cycle, speeds)),
         }
     }
 
@@ -366,15 +383,8 @@ impl Link {
             }
         };
         match msg {
-            Message::Feedback(f) => {
-                if self.window_end.is_some() && self.asm.feedback(&f) {
-                    return self.close_window(now);
-                }
-                if self.window_end.is_none() {
-                    self.asm.counters.stale += 1;
-                }
-                None
-            }
+            Message::Feedback(f) => self.feedback(&[f], now),
+            Message::FeedbackFd(axes) => self.feedback(&axes, now),
             Message::State { state, fault, .. } => {
                 self.servo = Some(state);
                 self.servo_fault = fault;
@@ -473,6 +483,22 @@ impl Link {
         }
     }
 
+    /// One cycle's feedback frame (one axis, or all six).
+    fn feedback(&mut self, axes: &[protocol::Feedback], now: f64) -> Option<LinkEvent> {
+        if self.window_end.is_none() {
+            self.asm.counters.stale += 1;
+            return None;
+        }
+        let mut complete = false;
+        for f in axes {
+            complete = self.asm.feedback(f);
+        }
+        if complete {
+            return self.close_window(now);
+        }
+        None
+    }
+
     fn begin_handshake(&mut self, request: Request, now: f64) {
         self.queue_control(request);
         self.phase = Phase::Handshake {
@@ -559,7 +585,7 @@ impl Link {
                 Some(js) => {
                     self.phase = Phase::Running;
                     // answer with zero speed so the controller's watchdog stays fed
-                    self.tx.extend(command_frames(self.cycle, &[0.0; 6]));
+                    self.queue_commands(&[0.0; 6]);
                     self.next_sync = now + self.cfg.period_s;
                     Some(LinkEvent::Connected(js))
                 }
