@@ -17,7 +17,6 @@
 use std::path::Path;
 
 use pa10::calib::fit::{CalibOptions, calibrate};
-use pa10::can::BusTiming;
 use pa10::daemon::config::{Config, Settings};
 use pa10::daemon::wire::{ApiRequest, Reply};
 use pa10::model::Model;
