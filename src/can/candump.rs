@@ -79,7 +79,8 @@ impl LoggedFrame {
             return Err("not a standard (11-bit) identifier");
         }
         let id = u16::from_str_radix(id, 16).map_err(|_| "identifier is not hexadecimal")?;
-        // CAN FD: `##`, one hex digit of flags (bit 0 BRS, bit 1 ESI), then the data
+        // CAN FD: `##`, one hex digit of flags (bit 0 BRS, bit 1 ESI, bit 2 FDF as newer
+        // kernels and can-utils set it), then the data
         let (fd, data) = match data.strip_prefix('#') {
             Some(rest) => {
                 let mut c = rest.chars();
@@ -87,8 +88,8 @@ impl LoggedFrame {
                     .next()
                     .and_then(|f| f.to_digit(16))
                     .ok_or("no CAN FD flags digit after `##`")?;
-                if flags > 3 {
-                    return Err("CAN FD flags must be 0…3 (BRS, ESI)");
+                if flags > 7 {
+                    return Err("CAN FD flags must be 0…7 (BRS, ESI, FDF)");
                 }
                 (Some(flags & 1 == 1), c.as_str())
             }
@@ -252,6 +253,8 @@ mod tests {
         assert_eq!(LoggedFrame::parse(&fd.to_string()), Ok(fd));
         let f = LoggedFrame::parse("(1.0) can0 100##0").unwrap().frame;
         assert!(f.is_fd() && !f.brs() && f.dlc() == 0);
+        let f = LoggedFrame::parse("(1.0) can0 100##5AA").unwrap().frame;
+        assert!(f.is_fd() && f.brs() && f.data() == [0xAA]);
         for (line, why) in [
             ("garbage", "time"),
             ("(1.0) can0 080#0", "whole bytes"),
@@ -262,7 +265,7 @@ mod tests {
             ("(1.0) can0 080#001122334455667788", "whole bytes"),
             ("(inf) can0 080#00", "finite"),
             ("(1.0) can0 180##", "flags"),
-            ("(1.0) can0 180##9", "0…3"),
+            ("(1.0) can0 180##9", "0…7"),
             ("(1.0) can0 180##1001122334455667788", "CAN FD length"),
             ("(1.0) can0 180##1éé", "hexadecimal"),
             ("(1.0) can0 080#éé", "hexadecimal"),

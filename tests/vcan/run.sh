@@ -5,7 +5,12 @@
 #   1. three joint moves with `pa10 move joints --wait` end where they were sent;
 #   2. a candump capture of the traffic decodes with docs/pa10.dbc (cantools) to the same
 #      values as the codec's (`pa10 sim decode`);
-#   3. killing the simulator makes the daemon stop on its feedback timeout, visible in status.
+#   3. killing the simulator makes the daemon stop on its feedback timeout, visible in status;
+# then the CAN FD variant on vcan1 (MTU 72; bus.fd: true, bus.data_bitrate: 5000000):
+#   4. pa10d refuses an FD configuration on vcan0 (MTU 16), naming the MTU;
+#   5. two joint moves on FD land, status says framing fd;
+#   6. the FD capture (COMMAND_FD / FEEDBACK_FD as candump's ID##1 lines) decodes with
+#      docs/pa10-fd.dbc (cantools) to the codec's values.
 # Fails loudly with the VM's console. Downloads (the kernel package) are cached in
 # $PA10_VCAN_CACHE (default ~/.cache/pa10-vcan). Needs root for apt-get only when the
 # packages are missing. Usage: tests/vcan/run.sh
@@ -69,6 +74,11 @@ sed -e 's/backend: virtual/backend: socketcan\n  interface: vcan0/' \
     -e 's/following_error: 0.01/following_error: 0.05/' \
     -e 's|socket: /tmp/pa10d-sim.sock|socket: /tmp/pa10d.sock|' \
     -e '/^sim:/,$d' "$root/config/sim.yaml" | sed 's/\\n/\n/' > "$ird/etc/vcan.yaml"
+# the FD variant: the same daemon on vcan1 with one COMMAND_FD / FEEDBACK_FD a cycle
+sed -e 's/interface: vcan0/interface: vcan1\n  fd: true\n  data_bitrate: 5000000/' \
+    -e 's|socket: /tmp/pa10d.sock|socket: /tmp/pa10d-fd.sock|' "$ird/etc/vcan.yaml" | sed 's/\\n/\n/g' > "$ird/etc/vcan-fd.yaml"
+# and the FD configuration pointed at the classic vcan0 (MTU 16): refused
+sed -e 's/interface: vcan1/interface: vcan0/' "$ird/etc/vcan-fd.yaml" > "$ird/etc/vcan-fd-on-classic.yaml"
 cat > "$ird/init" <<'INIT'
 #!/bin/busybox sh
 /bin/busybox --install -s /bin
@@ -96,6 +106,28 @@ kill $SIM
 sleep 1
 echo "STATUS-AFTER-KILL $(pa10 status --json)"
 echo DAEMON-LOG-BEGIN; tail -n 20 /tmp/pa10d.log; echo DAEMON-LOG-END
+# CAN FD on vcan1 (MTU 72)
+ip link add dev vcan1 type vcan && ip link set vcan1 mtu 72 && ip link set up vcan1 && echo VCAN-FD-UP
+export PA10D_SOCKET=/tmp/pa10d-fd.sock
+if pa10d --config /etc/vcan-fd-on-classic.yaml 2>/tmp/refused.log; then echo "FD-ON-CLASSIC-STARTED"; else echo "FD-ON-CLASSIC-REFUSED $(grep -o 'MTU 16[^)]*' /tmp/refused.log | head -1)"; fi
+candump -L vcan1 > /tmp/capfd.log &
+CAP=$!
+pa10 sim --can vcan1 --fd --seed 3 &
+SIM=$!
+pa10d --config /etc/vcan-fd.yaml 2>/tmp/pa10d-fd.log &
+i=0; while [ ! -S /tmp/pa10d-fd.sock ] && [ $i -lt 100 ]; do sleep 0.1; i=$((i+1)); done
+k=1
+for q in "0.1 0.45 1.55 0 1.1 -0.1" "-0.2 0.6 1.3 0.2 0.9 0.3"; do
+    if pa10 move joints --wait $q >/dev/null; then echo "FDMOVE$k-OK $q"; else echo "FDMOVE$k-FAIL $q"; fi
+    echo "FDSTATUS$k $(pa10 status --json)"
+    k=$((k+1))
+done
+kill $CAP
+echo CAPFD-BEGIN
+head -n 300 /tmp/capfd.log
+echo CAPFD-END
+echo FD-DAEMON-LOG-BEGIN; tail -n 20 /tmp/pa10d-fd.log; echo FD-DAEMON-LOG-END
+kill $SIM
 poweroff -f
 INIT
 chmod +x "$ird/init"
@@ -139,5 +171,33 @@ after = next(json.loads(l.split(" ", 1)[1]) for l in lines if l.startswith("STAT
 assert after["state"] == "fault" and "stale feedback" in (after["fault"] or ""), after
 print(f"vcan: 3 moves landed, capture of {sum(1 for _ in open(sys.argv[1]))} console lines checked, feedback-timeout stop seen: {after['fault']}")
 PY
-# five checks: vcan up, capture decoded, DBC agrees, three moves landed, feedback-timeout stop
-echo "vcan: 5 passed, 0 failed"
+grep -q VCAN-FD-UP "$work/console.txt" || fail "vcan1 (MTU 72) did not come up"
+grep -q "FD-ON-CLASSIC-REFUSED MTU 16" "$work/console.txt" || fail "pa10d did not refuse CAN FD on vcan0 (MTU 16) with the MTU named"
+sed -n '/^CAPFD-BEGIN$/,/^CAPFD-END$/p' "$work/console.txt" | grep '^(' > "$work/capfd.log" || true
+grep -q '##' "$work/capfd.log" || fail "no CAN FD frames captured on vcan1"
+"$target/debug/pa10" sim decode "$work/capfd.log" > "$work/expected-fd.json" || fail "the codec cannot decode the FD capture"
+python3 "$root/tests/dbc/check_dbc.py" "$root/docs/pa10-fd.dbc" "$work/capfd.log" "$work/expected-fd.json" || fail "cantools and the codec disagree on the FD capture"
+python3 - "$work/console.txt" <<'PY' || fail "FD scenario checks"
+import json, sys
+lines = open(sys.argv[1]).read().splitlines()
+moves = {}
+for l in lines:
+    if l.startswith("FDMOVE") and ("-OK " in l or "-FAIL " in l):
+        k, rest = l.split(" ", 1)
+        assert k.endswith("-OK"), f"FD move failed: {l}"
+        moves[k[6:-3]] = [float(x) for x in rest.split()]
+assert len(moves) == 2, f"expected two FD moves, saw {moves}"
+for k, q in moves.items():
+    st = next(json.loads(l.split(" ", 1)[1]) for l in lines if l.startswith(f"FDSTATUS{k} "))["status"]
+    assert st["state"] == "holding", st
+    assert st["cycle"]["framing"] == "fd", st["cycle"]
+    assert st["link"]["incomplete"] == 0 or st["link"]["cycles"] > 50 * st["link"]["incomplete"], st["link"]
+    for j in range(6):
+        assert abs(st["setpoint"][j] - q[j]) < 1e-9, (k, j, st["setpoint"], q)
+        assert abs(st["q_motor"][j] - q[j]) < 2e-3, (k, j, st["q_motor"], q)
+fd = sum(1 for l in lines if l.startswith("(") and "##" in l)
+print(f"vcan: CAN FD: 2 moves landed, {fd} FD frames in the capture, framing fd in status")
+PY
+# ten checks: vcan up, capture decoded, DBC agrees, three moves landed, feedback-timeout stop;
+# vcan1 (MTU 72) up, FD refused on MTU 16, FD capture decoded, FD DBC agrees, two FD moves landed
+echo "vcan: 10 passed, 0 failed"
