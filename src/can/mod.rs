@@ -18,7 +18,7 @@ pub mod virtual_bus;
 
 pub use bus::{BusError, BusEvent, CanBus, Filter};
 pub use frame::{CanFrame, Framing};
-pub use protocol::{Message, bus_load, check_rate, decode, encode};
-pub use timing::BusTiming;
+pub use protocol::{Message, decode, encode};
+pub use timing::{BusTiming, bus_load, check_rate};
 #[cfg(feature = "daemon")]
 pub use virtual_bus::{VirtualBus, VirtualConfig, VirtualEndpoint};

@@ -36,10 +36,6 @@ pub const COMMAND_FD_LEN: usize = 32;
 pub const FEEDBACK_FD_LEN: usize = 48;
 
 pub use super::frame::{CanFrame, FD_LENGTHS, FD_MAX_LEN, Framing};
-pub use super::timing::{
-    BusTiming, FdBits, bus_load, check_rate, cycle_bits_worst, fd_frame_bits_worst,
-    frame_bits_nominal, frame_bits_worst,
-};
 
 /// An enumeration with wire numbers, written once: the enum with its discriminants, and
 /// `ALL` / `from_wire` for decoding.
