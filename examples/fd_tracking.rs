@@ -18,18 +18,21 @@ use std::path::Path;
 
 use pa10::calib::fit::{CalibOptions, calibrate};
 use pa10::daemon::config::{Config, Settings};
-use pa10::daemon::wire::{ApiRequest, Reply};
 use pa10::model::Model;
 use pa10::sim::experiment::{CampaignSpec, paper_campaign};
-use pa10::sim::rig::{HOME, Lockstep};
+use pa10::sim::rig::Lockstep;
 use serde_json::json;
 
 #[path = "common/six_points.rs"]
 mod motion_path;
 use motion_path::six_points;
+#[path = "common/tracking.rs"]
+mod tracking;
 
 /// From a frame's last bit to the receiver acting on it, s.
 const WIRE_LATENCY_S: f64 = 20e-6;
+/// The stream's sine amplitudes about HOME, rad.
+const AMP: [f64; 6] = [0.2, 0.1, -0.1, 0.0, 0.2, 0.0];
 
 fn main() {
     let seed: u64 = std::env::args()
@@ -65,9 +68,14 @@ fn main() {
         let settings = settings(&dir, seed, rate, fd);
         for load in [0.0, 90.0] {
             let mut ls = rig(&settings, load);
-            let (rms, peak) = track(&mut ls, 1.0 / rate);
+            let ok = |_: &Lockstep| Ok::<(), String>(());
+            let (rms, peak, ended) =
+                tracking::trajectory(&mut ls, &six_points(), 1.0 / rate, 20.0, ok)
+                    .expect("the six points");
+            assert_eq!(ended, "succeeded");
             let mut ls2 = rig(&settings, load);
-            let (s_rms, s_peak) = stream(&mut ls2, 1.0 / rate);
+            let (s_rms, s_peak) =
+                tracking::sine_stream(&mut ls2, 1.0 / rate, 4.0, AMP, ok).expect("the stream");
             println!(
                 "| {} | {rate} Hz | {load} N | {rms:.3} / {peak:.3} | {s_rms:.3} / {s_peak:.3} | {:.1} % / {:.1} % |",
                 settings.bus.timing().describe(),
@@ -111,61 +119,4 @@ fn rig(settings: &Settings, load_n: f64) -> Lockstep {
     assert_eq!(r["ok"], true, "{r}");
     ls.run_for(1.0); // the measured torques settle
     ls
-}
-
-/// RMS and peak (mrad) of the true link − the trajectory's desired positions, every cycle.
-fn track(ls: &mut Lockstep, period_s: f64) -> (f64, f64) {
-    let r = ls.call_json(&json!({"cmd": "follow_trajectory", "points": six_points()}));
-    assert_eq!(r["ok"], true, "{r}");
-    let (mut sum, mut peak, mut n) = (0.0, 0.0f64, 0usize);
-    loop {
-        ls.run_for(period_s);
-        let st = ls.call_json(&json!({"cmd": "status"}))["status"].clone();
-        let t = &st["trajectory"];
-        let desired: [f64; 6] = serde_json::from_value(t["desired"].clone()).expect("six");
-        let (link, _) = ls.servo.link_state();
-        for j in 0..6 {
-            let e = (link[j] - desired[j]) * 1e3;
-            sum += e * e;
-            peak = peak.max(e.abs());
-        }
-        n += 6;
-        if t["state"] != "executing" {
-            assert_eq!(t["state"], "succeeded", "{st}");
-            return ((sum / n as f64).sqrt(), peak);
-        }
-        assert!(n < 6 * 100_000, "the trajectory did not end");
-    }
-}
-
-/// RMS and peak (mrad) of the true link − the streamed target, one setpoint a cycle for 4 s,
-/// judged after the first second.
-fn stream(ls: &mut Lockstep, period_s: f64) -> (f64, f64) {
-    let amp = [0.2, 0.1, -0.1, 0.0, 0.2, 0.0];
-    let (mut sum, mut peak, mut n) = (0.0, 0.0f64, 0usize);
-    let steps = (4.0 / period_s).round() as usize;
-    for k in 0..steps {
-        let t = k as f64 * period_s;
-        let w = (std::f64::consts::TAU * 0.2 * t).sin();
-        let target: [f64; 6] = std::array::from_fn(|j| HOME[j] + amp[j] * w);
-        let servo = ApiRequest::Servo {
-            positions: Some(target),
-            position: None,
-            quaternion: None,
-        };
-        if let Reply::Refused(e) = ls.call(servo) {
-            panic!("servo refused at {t} s: {e}");
-        }
-        ls.run_for(period_s);
-        if t >= 1.0 {
-            let (link, _) = ls.servo.link_state();
-            for j in 0..6 {
-                let e = (link[j] - target[j]) * 1e3;
-                sum += e * e;
-                peak = peak.max(e.abs());
-            }
-            n += 6;
-        }
-    }
-    ((sum / n.max(1) as f64).sqrt(), peak)
 }

@@ -32,11 +32,12 @@ use pa10::sim::servo::{ServoConfig, ServoSim};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use serde::Serialize;
-use serde_json::json;
 
 #[path = "common/six_points.rs"]
 mod motion_path;
 use motion_path::six_points;
+#[path = "common/tracking.rs"]
+mod tracking;
 
 const CAL_LOADS: [f64; 3] = [0.0, 22.0, 44.0];
 const VAL_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
@@ -736,72 +737,25 @@ fn rest_mrad(ls: &Lockstep) -> Result<f64> {
     Ok((ss / 6.0).sqrt() * 1e3)
 }
 
-/// A 500 Hz `servo` stream from [`HOME`]: sines of 0.2 Hz on J1 (0.2 rad), J2 (0.1), J3
-/// (−0.1), J5 (0.2) for 4 s; RMS and peak (mrad) of MuJoCo's link angles − the streamed
-/// target over all joints after the first second (the start-up catch-up). Ends at rest.
+/// The 0.2 Hz sine stream (`examples/common/tracking.rs`) for 4 s at the cycle rate, then
+/// the stream's deadline stops the arm and it comes to rest.
 fn stream(ls: &mut Lockstep) -> Result<(f64, f64)> {
     let amp = [0.2, 0.1, -0.1, 0.0, 0.2, 0.0];
-    let (mut sum, mut peak, mut n) = (0.0, 0.0f64, 0usize);
-    for k in 0..2000 {
-        let t = k as f64 * PERIOD_S;
-        let w = (std::f64::consts::TAU * 0.2 * t).sin();
-        let target: [f64; 6] = std::array::from_fn(|j| HOME[j] + amp[j] * w);
-        let servo = ApiRequest::Servo {
-            positions: Some(target),
-            position: None,
-            quaternion: None,
-        };
-        if let Reply::Refused(_) = ls.call(servo) {
-            break; // faulted: `recover` says why
-        }
-        ls.run_for(PERIOD_S);
-        plant_ok(ls)?;
-        if t >= 1.0 {
-            let (link, _) = ls.servo.link_state();
-            for j in 0..6 {
-                let e = (link[j] - target[j]) * 1e3;
-                sum += e * e;
-                peak = peak.max(e.abs());
-            }
-            n += 6;
-        }
-    }
-    // the stream's deadline stops the arm; then it comes to rest
+    let r = tracking::sine_stream(ls, PERIOD_S, 4.0, amp, plant_ok)?;
     ls.run_for(0.5);
     if status(ls)?.state == State::Holding {
         settle(ls)?;
     }
-    Ok(((sum / n.max(1) as f64).sqrt(), peak))
+    Ok(r)
 }
 
 /// RMS and peak (mrad) of MuJoCo's link angles − the trajectory's desired positions, every
 /// cycle, over all joints, and how the trajectory ended ("succeeded" or the daemon's fault).
 fn track(ls: &mut Lockstep) -> Result<(f64, f64, String)> {
-    let r = ls.call_json(&json!({"cmd": "follow_trajectory", "points": six_points()}));
-    ensure!(r["ok"] == true, "follow_trajectory: {r}");
-    let (mut sum, mut peak, mut n) = (0.0, 0.0f64, 0usize);
-    loop {
-        ls.run_for(PERIOD_S);
-        plant_ok(ls)?;
-        let st = ls.call_json(&json!({"cmd": "status"}))["status"].clone();
-        let t = &st["trajectory"];
-        let desired: [f64; 6] = serde_json::from_value(t["desired"].clone())?;
-        let (link, _) = ls.servo.link_state();
-        for j in 0..6 {
-            let e = (link[j] - desired[j]) * 1e3;
-            sum += e * e;
-            peak = peak.max(e.abs());
-        }
-        n += 6;
-        if t["state"] != "executing" {
-            let ended = match st["fault"].as_str() {
-                Some(f) => f.to_string(),
-                None => t["state"].as_str().unwrap_or("?").to_string(),
-            };
-            return Ok(((sum / n as f64).sqrt(), peak, ended));
-        }
-        ensure!(n < 6 * 20_000, "the trajectory did not end in 40 s");
-    }
+    tracking::trajectory(ls, &six_points(), PERIOD_S, 40.0, |l: &Lockstep| {
+        plant_ok(l).map_err(|e| e.to_string())
+    })
+    .map_err(anyhow::Error::msg)
 }
 
 fn print(o: &Outcome) {

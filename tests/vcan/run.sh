@@ -7,7 +7,7 @@
 #      values as the codec's (`pa10 sim decode`);
 #   3. killing the simulator makes the daemon stop on its feedback timeout, visible in status;
 # then the CAN FD variant on vcan1 (MTU 72; bus.fd: true, bus.data_bitrate: 5000000):
-#   4. pa10d refuses an FD configuration on vcan0 (MTU 16), naming the MTU;
+#   4. pa10d refuses an FD configuration on vcan0 set to MTU 16 (classic only), naming the MTU;
 #   5. two joint moves on FD land, status says framing fd;
 #   6. the FD capture (COMMAND_FD / FEEDBACK_FD as candump's ID##1 lines) decodes with
 #      docs/pa10-fd.dbc (cantools) to the codec's values.
@@ -109,6 +109,8 @@ echo DAEMON-LOG-BEGIN; tail -n 20 /tmp/pa10d.log; echo DAEMON-LOG-END
 # CAN FD on vcan1 (MTU 72)
 ip link add dev vcan1 type vcan && ip link set vcan1 mtu 72 && ip link set up vcan1 && echo VCAN-FD-UP
 export PA10D_SOCKET=/tmp/pa10d-fd.sock
+# vcan's default MTU is CAN FD's (72): make vcan0 a classic-only interface (16) first
+ip link set vcan0 down && ip link set vcan0 mtu 16 && ip link set up vcan0 && echo "VCAN0-MTU $(cat /sys/class/net/vcan0/mtu) VCAN1-MTU $(cat /sys/class/net/vcan1/mtu)"
 if pa10d --config /etc/vcan-fd-on-classic.yaml 2>/tmp/refused.log; then echo "FD-ON-CLASSIC-STARTED"; else echo "FD-ON-CLASSIC-REFUSED $(tail -n 3 /tmp/refused.log | tr '\n' ' ')"; fi
 candump -L vcan1 > /tmp/capfd.log &
 CAP=$!
