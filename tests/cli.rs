@@ -175,6 +175,22 @@ fn the_daemon_checks_its_config() {
             concat!(env!("CARGO_MANIFEST_DIR"), "/config/model-nominal.yaml")
         ),
     );
+    // the CAN FD configuration: 1 kHz at 31.8 % worst case
+    let fd = text
+        .replace(
+            "  bitrate: 1000000          # bit/s",
+            "  bitrate: 1000000\n  fd: true\n  data_bitrate: 5000000",
+        )
+        .replace("rate_hz: 500 ", "rate_hz: 1000 ");
+    std::fs::write(dir.join("fd.yaml"), fd).unwrap();
+    let o = pa10d(&["--check-config", dir.join("fd.yaml").to_str().unwrap()]);
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        s.contains("CAN FD bus at 1000/5000 kbit/s")
+            && s.contains("1000 Hz, worst-case bus load 31.8 %"),
+        "{s}"
+    );
     std::fs::write(
         dir.join("bad.yaml"),
         text.replace("rate_hz: 500", "rate_hz: 1000"),
