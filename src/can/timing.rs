@@ -82,8 +82,38 @@ pub fn fd_frame_bits_nominal(len: usize) -> FdBits {
     }
 }
 
+/// The unstuffed bits of one frame up to its CRC, on the stack: counting a frame's bits does
+/// not allocate (the virtual bus counts every frame the loop sends).
+struct Bits {
+    b: [bool; 576],
+    len: usize,
+}
+
+impl Bits {
+    fn new() -> Self {
+        Self {
+            b: [false; 576],
+            len: 0,
+        }
+    }
+    fn push(&mut self, v: bool) {
+        if let Some(slot) = self.b.get_mut(self.len) {
+            *slot = v;
+            self.len += 1;
+        }
+    }
+    fn extend(&mut self, v: impl IntoIterator<Item = bool>) {
+        for b in v {
+            self.push(b);
+        }
+    }
+    fn as_slice(&self) -> &[bool] {
+        &self.b[..self.len]
+    }
+}
+
 /// Pushes the `n` low bits of `v`, most significant first.
-fn push_bits(bits: &mut Vec<bool>, v: u32, n: u32) {
+fn push_bits(bits: &mut Bits, v: u32, n: u32) {
     for i in (0..n).rev() {
         bits.push((v >> i) & 1 == 1);
     }
@@ -129,7 +159,7 @@ pub(crate) fn crc15(bits: &[bool]) -> u16 {
 /// over SOF … CRC-15; FD: over SOF … data, the CRC field having fixed stuff bits), the trailer
 /// and the interframe space. A classic frame is all `nominal`.
 pub fn exact_bits(f: &CanFrame) -> FdBits {
-    let mut bits: Vec<bool> = Vec::with_capacity(FD_ARBITRATION_BITS as usize + 8 * 64 + 8);
+    let mut bits = Bits::new();
     bits.push(false); // SOF
     push_bits(&mut bits, u32::from(f.id()), 11);
     if !f.is_fd() {
@@ -138,11 +168,11 @@ pub fn exact_bits(f: &CanFrame) -> FdBits {
         for &byte in f.data() {
             push_bits(&mut bits, u32::from(byte), 8);
         }
-        let crc = crc15(&bits);
+        let crc = crc15(bits.as_slice());
         push_bits(&mut bits, u32::from(crc), 15);
-        let (stuffed, _) = stuff_bits(&bits, 0);
+        let (stuffed, _) = stuff_bits(bits.as_slice(), 0);
         return FdBits {
-            nominal: bits.len() as u32 + stuffed + 1 + 2 + 7 + 3,
+            nominal: bits.len as u32 + stuffed + 1 + 2 + 7 + 3,
             data: 0,
         };
     }
@@ -152,10 +182,10 @@ pub fn exact_bits(f: &CanFrame) -> FdBits {
     for &byte in f.data() {
         push_bits(&mut bits, u32::from(byte), 8);
     }
-    let (stuffed, arbitration) = stuff_bits(&bits, FD_ARBITRATION_BITS as usize);
+    let (stuffed, arbitration) = stuff_bits(bits.as_slice(), FD_ARBITRATION_BITS as usize);
     FdBits {
         nominal: FD_ARBITRATION_BITS + arbitration + FD_TRAILER_BITS,
-        data: bits.len() as u32 - FD_ARBITRATION_BITS
+        data: bits.len as u32 - FD_ARBITRATION_BITS
             + (stuffed - arbitration)
             + fd_crc_field_bits(f.dlc()),
     }
