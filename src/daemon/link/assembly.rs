@@ -78,15 +78,26 @@ impl CycleAssembler {
     /// Takes one FEEDBACK frame; true once all six axes of this cycle are in. Another
     /// cycle's feedback is counted as stale.
     pub fn feedback(&mut self, f: &protocol::Feedback) -> bool {
-        if f.cycle != self.cycle || !(1..=6).contains(&f.axis) {
+        self.feedback_frame(std::slice::from_ref(f))
+    }
+
+    /// Takes one frame's feedback — one axis (FEEDBACK) or all six (FEEDBACK_FD); true once
+    /// all six axes of this cycle are in. A frame of another cycle counts once as stale.
+    pub fn feedback_frame(&mut self, axes: &[protocol::Feedback]) -> bool {
+        if axes
+            .iter()
+            .any(|f| f.cycle != self.cycle || !(1..=6).contains(&f.axis))
+        {
             self.counters.stale += 1;
             return self.complete();
         }
-        let j = f.axis as usize - 1;
-        self.state.q_motor[j] = f.angle_rad();
-        self.state.current[j] = f.current_a();
-        self.state.controller_fault |= f.status & status::FAULT != 0;
-        self.seen |= 1 << j;
+        for f in axes {
+            let j = f.axis as usize - 1;
+            self.state.q_motor[j] = f.angle_rad();
+            self.state.current[j] = f.current_a();
+            self.state.controller_fault |= f.status & status::FAULT != 0;
+            self.seen |= 1 << j;
+        }
         self.complete()
     }
 

@@ -489,11 +489,7 @@ impl Link {
             self.asm.counters.stale += 1;
             return None;
         }
-        let mut complete = false;
-        for f in axes {
-            complete = self.asm.feedback(f);
-        }
-        if complete {
+        if self.asm.feedback_frame(axes) {
             return self.close_window(now);
         }
         None

@@ -278,3 +278,59 @@ fn command_frames_answer_the_cycle_and_saturate() {
     };
     assert_eq!(c.speed, 0);
 }
+
+/// On CAN FD the link sends one COMMAND_FD a cycle and one FEEDBACK_FD completes the cycle;
+/// a FEEDBACK_FD of another cycle counts once as stale.
+#[test]
+fn on_can_fd_one_frame_each_way_makes_a_cycle() {
+    let fd = |cycle: u8, angle: i32| {
+        protocol::encode(&Message::FeedbackFd(std::array::from_fn(|j| Feedback {
+            axis: j as u8 + 1,
+            angle: angle + j as i32,
+            current: 100,
+            status: status::SERVO_ON,
+            cycle,
+        })))
+        .unwrap()
+    };
+    let mut l = Link::new(LinkConfig::new(PERIOD, 50).with_framing(Framing::Fd));
+    l.connect(0.0);
+    l.handle(&state(ServoState::Stopped), 0.05);
+    l.handle(&state(ServoState::BrakeRelease), 0.06);
+    l.handle(&state(ServoState::Control), 0.07);
+    assert_eq!(
+        sent(&mut l),
+        [
+            control(Request::ReleaseBrakes),
+            control(Request::StartControl),
+            Message::Sync { cycle: 1 }
+        ]
+    );
+    let Some(LinkEvent::Connected(js)) = l.handle(&fd(1, 6000), 0.0701) else {
+        panic!("one FEEDBACK_FD connects")
+    };
+    assert_eq!(js.q_motor[5], 6005.0 * protocol::ANGLE_LSB);
+    let first = sent(&mut l);
+    assert!(
+        matches!(first.as_slice(), [Message::CommandFd(c)] if c.iter().all(|a| a.cycle == 1 && a.speed == 0)),
+        "{first:?}"
+    );
+    // the next cycle: a stale FD frame counts once, the right one completes it
+    l.handle_timeout(0.0701 + PERIOD);
+    assert_eq!(sent(&mut l), [Message::Sync { cycle: 2 }]);
+    assert_eq!(l.handle(&fd(1, 0), 0.0722), None);
+    assert_eq!(l.counters().stale, 1);
+    assert!(matches!(
+        l.handle(&fd(2, 7000), 0.0723),
+        Some(LinkEvent::Cycle {
+            feedback: Some(_),
+            ..
+        })
+    ));
+    l.send_commands(&[0.1; 6]);
+    let cmds = sent(&mut l);
+    assert!(
+        matches!(cmds.as_slice(), [Message::CommandFd(c)] if c.iter().all(|a| a.cycle == 2 && a.speed == 500)),
+        "{cmds:?}"
+    );
+}
