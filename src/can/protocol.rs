@@ -493,7 +493,17 @@ fn status_ok(status: u8) -> Result<(), EncodeError> {
     Ok(())
 }
 
+/// The payload of a frame of a known identifier: in the protocol's format for it (classic or
+/// FD) and of its length.
 fn dlc(frame: &CanFrame, expected: usize) -> Result<&[u8], DecodeError> {
+    if frame.is_fd() != is_fd_id(frame.id()) {
+        let name = |fd: bool| if fd { "CAN FD" } else { "classic" };
+        return Err(DecodeError::WrongFormat {
+            id: frame.id(),
+            got: name(frame.is_fd()),
+            expected: name(is_fd_id(frame.id())),
+        });
+    }
     if frame.dlc() != expected {
         return Err(DecodeError::WrongDlc {
             id: frame.id(),
@@ -528,21 +538,6 @@ fn reserved(id: u16, d: &[u8], at: &[usize]) -> Result<(), DecodeError> {
 /// Decodes a frame.
 pub fn decode(frame: &CanFrame) -> Result<Message, DecodeError> {
     let id = frame.id();
-    let known = matches!(id, ID_CONTROL | ID_STATE | ID_SYNC | ID_ERROR)
-        || (0x101..=0x106).contains(&id)
-        || (0x181..=0x186).contains(&id)
-        || is_fd_id(id);
-    if !known {
-        return Err(DecodeError::UnknownId(id));
-    }
-    if frame.is_fd() != is_fd_id(id) {
-        let name = |fd: bool| if fd { "CAN FD" } else { "classic" };
-        return Err(DecodeError::WrongFormat {
-            id,
-            got: name(frame.is_fd()),
-            expected: name(is_fd_id(id)),
-        });
-    }
     match id {
         ID_CONTROL => {
             let d = dlc(frame, 2)?;

@@ -191,14 +191,26 @@ pub fn exact_bits(f: &CanFrame) -> FdBits {
     }
 }
 
-/// Exact bits of a classic frame on the wire (all of [`exact_bits`] for classic frames).
-pub fn exact_frame_bits(f: &CanFrame) -> u32 {
-    exact_bits(f).total()
-}
-
 /// Ceiling on the data bit rate, bit/s: CAN FD transceivers are specified up to 8 Mbit/s; 10
 /// leaves room for the fastest, not for a typing error.
 pub const MAX_DATA_BITRATE: f64 = 10e6;
+
+/// A bit rate a bus cannot have.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum RateError {
+    /// The arbitration-phase (classic: the only) bit rate.
+    #[error("bitrate must be > 0 and ≤ 1000000 bit/s (CAN's arbitration phase), got {0}")]
+    Bitrate(f64),
+    /// The CAN FD data-phase bit rate.
+    #[error("data_bitrate must be within bitrate ({bitrate:.0}) … {max:.0} bit/s, got {got}", max = MAX_DATA_BITRATE)]
+    DataBitrate {
+        /// The arbitration-phase rate, bit/s.
+        bitrate: f64,
+        /// The data-phase rate asked for, bit/s.
+        got: f64,
+    },
+}
 
 /// A bus's framing and bit rates, bit/s.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -236,59 +248,54 @@ impl BusTiming {
         self.framing == Framing::Fd && self.data_bitrate > self.bitrate
     }
 
-    /// The rates checked: each positive and finite, the data rate within
-    /// [`MAX_DATA_BITRATE`] and not below the nominal one.
-    pub fn validate(&self) -> Result<(), String> {
+    /// The rates checked: each positive and finite, the arbitration rate within CAN's
+    /// 1 Mbit/s, the data rate within [`MAX_DATA_BITRATE`] and not below the nominal one.
+    pub fn validate(&self) -> Result<(), RateError> {
         if !(self.bitrate.is_finite() && self.bitrate > 0.0 && self.bitrate <= 1e6) {
-            return Err(format!(
-                "bitrate must be > 0 and ≤ 1000000 bit/s (CAN's arbitration phase), got {}",
-                self.bitrate
-            ));
+            return Err(RateError::Bitrate(self.bitrate));
         }
         if self.framing == Framing::Fd
             && !(self.data_bitrate.is_finite()
                 && self.data_bitrate >= self.bitrate
                 && self.data_bitrate <= MAX_DATA_BITRATE)
         {
-            return Err(format!(
-                "data_bitrate must be within bitrate ({:.0}) … {MAX_DATA_BITRATE:.0} bit/s, got {}",
-                self.bitrate, self.data_bitrate
-            ));
+            return Err(RateError::DataBitrate {
+                bitrate: self.bitrate,
+                got: self.data_bitrate,
+            });
         }
         Ok(())
     }
 
-    fn seconds(&self, b: FdBits) -> f64 {
-        let data_rate = if self.brs() {
+    /// Time of `count` times `b` on the wire, s: the nominal bits at the nominal rate, the
+    /// data bits at the data rate when the frame switches (`brs`) and the bus has a faster
+    /// data phase, else at the nominal rate too. (`count` multiplies each phase before the
+    /// division, so that 500 cycles of 1695 bits on 1 Mbit/s are exactly 0.8475 s.)
+    fn wire_s(&self, b: FdBits, brs: bool, count: f64) -> f64 {
+        let data_rate = if brs && self.brs() {
             self.data_bitrate
         } else {
             self.bitrate
         };
-        b.nominal as f64 / self.bitrate + b.data as f64 / data_rate
+        count * b.nominal as f64 / self.bitrate + count * b.data as f64 / data_rate
     }
 
     /// Worst-case time of `f` on this bus, s.
     pub fn frame_time_worst_s(&self, f: &CanFrame) -> f64 {
-        if f.is_fd() {
-            let b = fd_frame_bits_worst(f.dlc());
-            if f.brs() {
-                self.seconds(b)
-            } else {
-                b.total() as f64 / self.bitrate
-            }
+        let b = if f.is_fd() {
+            fd_frame_bits_worst(f.dlc())
         } else {
-            frame_bits_worst(f.dlc()) as f64 / self.bitrate
-        }
+            FdBits {
+                nominal: frame_bits_worst(f.dlc()),
+                data: 0,
+            }
+        };
+        self.wire_s(b, f.brs(), 1.0)
     }
 
     /// Exact time of `f` on this bus (its own stuffing), s.
     pub fn frame_time_s(&self, f: &CanFrame) -> f64 {
-        let b = exact_bits(f);
-        if f.is_fd() && f.brs() {
-            self.seconds(b)
-        } else {
-            b.total() as f64 / self.bitrate
-        }
+        self.wire_s(exact_bits(f), f.brs(), 1.0)
     }
 
     /// Worst-case wire time of one control cycle, s: SYNC (2 bytes) and, classic, six
@@ -303,7 +310,7 @@ impl BusTiming {
         let sync = frame_bits_worst(2);
         match self.framing {
             Framing::Classic => FdBits {
-                nominal: sync + 12 * frame_bits_worst(8),
+                nominal: cycle_bits_worst(),
                 data: 0,
             },
             Framing::Fd => {
@@ -319,16 +326,9 @@ impl BusTiming {
         }
     }
 
-    /// Worst-case bus load (0…1+) of the cyclic traffic at `rate_hz` (bits per second over
-    /// each phase's bit rate, so that 500 Hz on 1 Mbit/s is exactly 0.8475).
+    /// Worst-case bus load (0…1+) of the cyclic traffic at `rate_hz`.
     pub fn load(&self, rate_hz: f64) -> f64 {
-        let b = self.cycle_bits();
-        let data_rate = if self.brs() {
-            self.data_bitrate
-        } else {
-            self.bitrate
-        };
-        rate_hz * b.nominal as f64 / self.bitrate + rate_hz * b.data as f64 / data_rate
+        self.wire_s(self.cycle_bits(), true, rate_hz)
     }
 
     /// The highest cycle rate whose worst-case load stays within `limit` (0…1), Hz.
@@ -342,7 +342,7 @@ impl BusTiming {
         if !(rate_hz.is_finite() && rate_hz > 0.0) {
             return Err(format!("cycle rate must be > 0 Hz, got {rate_hz}"));
         }
-        self.validate()?;
+        self.validate().map_err(|e| e.to_string())?;
         let load = self.load(rate_hz);
         if load > limit {
             return Err(format!(
@@ -457,7 +457,7 @@ mod tests {
         for dlc in 0..=8 {
             for pattern in [0x00u8, 0xFF, 0x55, 0x0F] {
                 let f = CanFrame::new(0x7FF & (0x555 + dlc as u16), &vec![pattern; dlc]).unwrap();
-                let b = exact_frame_bits(&f);
+                let b = exact_bits(&f).total();
                 assert!(
                     b >= frame_bits_nominal(dlc) && b <= frame_bits_worst(dlc),
                     "dlc {dlc} {pattern:#x}: {b}"
@@ -484,7 +484,7 @@ mod tests {
         }
         // all-zero payloads stuff a bit every four: clearly more than nominal
         let zeros = CanFrame::new(0x000, &[0; 8]).unwrap();
-        assert!(exact_frame_bits(&zeros) > frame_bits_nominal(8) + 15);
+        assert!(exact_bits(&zeros).total() > frame_bits_nominal(8) + 15);
         let fd_zeros = CanFrame::new_fd(0x180, &[0; 48], true).unwrap();
         assert!(exact_bits(&fd_zeros).data > fd_frame_bits_nominal(48).data + 70);
         // CRC-15 of the empty message is 0

@@ -14,6 +14,7 @@ use super::control::LoopParams;
 use super::link::LinkConfig;
 use super::vocab::Limits;
 use crate::can::BusTiming;
+use crate::can::timing::RateError;
 use crate::model::Model;
 use crate::record::RecordConfig;
 
@@ -405,13 +406,12 @@ impl Config {
             ));
         }
         let timing = c.bus.timing();
-        timing.validate().map_err(|r| {
-            let key = if r.starts_with("data_bitrate") {
-                "bus.data_bitrate"
-            } else {
-                "bus.bitrate"
+        timing.validate().map_err(|e| {
+            let key = match e {
+                RateError::DataBitrate { .. } => "bus.data_bitrate",
+                _ => "bus.bitrate",
             };
-            invalid(key, r)
+            invalid(key, e.to_string())
         })?;
         let bus_load = timing
             .check_rate(c.control.rate_hz, c.bus.max_load)

@@ -63,15 +63,6 @@ pub fn truth_for(settings: &Settings) -> Result<(TrueRobot, u64), RigError> {
     Ok((truth_from_config(&sim)?, sim.seed))
 }
 
-/// The simulated controller's parameters for validated settings: the defaults, speaking the
-/// configured bus's framing.
-pub fn servo_config(settings: &Settings) -> ServoConfig {
-    ServoConfig {
-        framing: settings.bus.timing().framing,
-        ..ServoConfig::default()
-    }
-}
-
 /// The simulated controller running in real time on a virtual bus.
 pub struct SimulatedArm {
     servo: SharedServo,
@@ -109,10 +100,7 @@ impl SimulatedArm {
             timing,
             ..VirtualConfig::default()
         });
-        let cfg = ServoConfig {
-            framing: timing.framing,
-            ..ServoConfig::default()
-        };
+        let cfg = ServoConfig::speaking(timing.framing);
         let servo = Arc::new(Mutex::new(ServoSim::new(truth, cfg, HOME, seed)));
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
@@ -192,6 +180,21 @@ pub struct Lockstep {
     wire: Option<Wire>,
 }
 
+/// When a frame sent at `now` (s) arrives at the other side, s: after [`Lockstep::LATENCY_S`],
+/// or through the modelled `wire`.
+fn arrival(wire: &mut Option<Wire>, now: f64, f: &CanFrame) -> f64 {
+    match wire {
+        None => now + Lockstep::LATENCY_S,
+        Some(w) => {
+            let t = w.timing.frame_time_s(f);
+            let end = now.max(w.free_at) + t;
+            w.free_at = end;
+            w.busy_s += t;
+            end + w.latency_s
+        }
+    }
+}
+
 /// The shared wire of a [`Lockstep`] run with wire timing ([`Lockstep::with_wire`]): frames
 /// are sent one after another, each taking its exact time at the bus's bit rates, and reach
 /// the other side `latency_s` after their end.
@@ -248,25 +251,16 @@ impl Lockstep {
             .map(|w| w.busy_s / self.now.max(f64::MIN_POSITIVE))
     }
 
-    /// When a frame sent at `now` arrives at the other side, s.
-    fn arrival(&mut self, now: f64, f: &CanFrame) -> f64 {
-        match &mut self.wire {
-            None => now + Self::LATENCY_S,
-            Some(w) => {
-                let t = w.timing.frame_time_s(f);
-                let end = now.max(w.free_at) + t;
-                w.free_at = end;
-                w.busy_s += t;
-                end + w.latency_s
-            }
-        }
-    }
-
     /// The daemon validated settings describe with the simulated arm of their `sim` section
     /// at [`HOME`].
     pub fn from_config(settings: &Settings) -> Result<Self, RigError> {
         let (truth, seed) = truth_for(settings)?;
-        let servo = ServoSim::new(truth, servo_config(settings), HOME, seed);
+        let servo = ServoSim::new(
+            truth,
+            ServoConfig::speaking(settings.bus.timing().framing),
+            HOME,
+            seed,
+        );
         Ok(Self::new(Core::from_config(settings), servo))
     }
 
@@ -341,18 +335,14 @@ impl Lockstep {
             } else {
                 lock(&self.core).handle_timeout(now);
             }
-            let mut out = std::mem::take(&mut self.out);
-            for f in out.drain(..) {
-                let at = self.arrival(now, &f);
-                self.to_host.push_back((at, f));
+            for f in self.out.drain(..) {
+                self.to_host
+                    .push_back((arrival(&mut self.wire, now, &f), f));
             }
-            self.out = out;
-            loop {
-                let Some(f) = lock(&self.core).poll_transmit() else {
-                    break;
-                };
-                let at = self.arrival(now, &f);
-                self.to_servo.push_back((at, f));
+            let mut core = lock(&self.core);
+            while let Some(f) = core.poll_transmit() {
+                self.to_servo
+                    .push_back((arrival(&mut self.wire, now, &f), f));
             }
         }
     }

@@ -81,6 +81,16 @@ impl Default for ServoConfig {
     }
 }
 
+impl ServoConfig {
+    /// The default parameters, sending feedback in `framing`'s format.
+    pub fn speaking(framing: Framing) -> Self {
+        Self {
+            framing,
+            ..Self::default()
+        }
+    }
+}
+
 /// Faults to inject (from configuration or tests).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Injected {

@@ -114,21 +114,28 @@ fn runtime() -> Result<tokio::runtime::Runtime> {
         .context("starting the async runtime")
 }
 
-/// Opens a SocketCAN interface (Linux only).
-#[cfg(target_os = "linux")]
-fn open_can(iface: &str, fd: bool) -> Result<pa10::can::socketcan_bus::SocketCanBus> {
-    let framing = if fd {
+/// The frame format `--fd` asks for.
+fn framing_of(fd: bool) -> pa10::can::Framing {
+    if fd {
         pa10::can::Framing::Fd
     } else {
         pa10::can::Framing::Classic
-    };
+    }
+}
+
+/// Opens a SocketCAN interface (Linux only), for CAN FD frames too with [`Framing::Fd`](pa10::can::Framing::Fd).
+#[cfg(target_os = "linux")]
+fn open_can(
+    iface: &str,
+    framing: pa10::can::Framing,
+) -> Result<pa10::can::socketcan_bus::SocketCanBus> {
     pa10::can::socketcan_bus::SocketCanBus::open_with(iface, framing).with_context(|| {
         format!("opening CAN interface {iface} (is it up? `ip link set up {iface}`)")
     })
 }
 
 #[cfg(not(target_os = "linux"))]
-fn open_can(iface: &str, _fd: bool) -> Result<pa10::can::VirtualEndpoint> {
+fn open_can(iface: &str, _framing: pa10::can::Framing) -> Result<pa10::can::VirtualEndpoint> {
     anyhow::bail!("{iface}: SocketCAN needs Linux")
 }
 
@@ -156,14 +163,8 @@ fn run_sim(a: &SimRunArgs) -> Result<()> {
         }
     };
     let home = [0.0, 0.5, 1.2, 0.0, 0.9, 0.0];
-    let cfg = ServoConfig {
-        framing: if a.fd {
-            pa10::can::Framing::Fd
-        } else {
-            pa10::can::Framing::Classic
-        },
-        ..ServoConfig::default()
-    };
+    let framing = framing_of(a.fd);
+    let cfg = ServoConfig::speaking(framing);
     let mut servo_sim = ServoSim::new(truth, cfg, home, a.seed);
     servo_sim.injected.mute_axis = a.mute_axis;
     for spec in &a.current_offset {
@@ -186,7 +187,7 @@ fn run_sim(a: &SimRunArgs) -> Result<()> {
     };
     let rt = runtime()?;
     rt.block_on(async {
-        let bus = open_can(iface, a.fd)?;
+        let bus = open_can(iface, framing)?;
         let (tx, rx) = tokio::sync::watch::channel(false);
         let duration = a.duration;
         tokio::spawn(async move {
@@ -258,7 +259,7 @@ fn replay(a: &ReplayArgs) -> Result<()> {
     let entries = pa10::can::candump::read_log(&a.file)?;
     let rt = runtime()?;
     let n = rt.block_on(async {
-        let mut bus = open_can(&a.can, a.fd)?;
+        let mut bus = open_can(&a.can, framing_of(a.fd))?;
         pa10::can::candump::replay(&mut bus, &entries)
             .await
             .with_context(|| format!("sending on {}", a.can))

@@ -1,5 +1,5 @@
-//! One cycle's frames: [`CycleAssembler`] gathers this cycle's six FEEDBACK frames into a
-//! [`JointState`] in SI units and counts everything else ([`LinkCounters`]);
+//! One cycle's frames: [`CycleAssembler`] gathers this cycle's six FEEDBACK frames (or its one
+//! FEEDBACK_FD) into a [`JointState`] in SI units and counts everything else ([`LinkCounters`]);
 //! [`command_frames`] encodes the six COMMAND frames of a cycle's speeds, [`command_frame_fd`]
 //! the one COMMAND_FD frame. No allocation.
 
@@ -75,15 +75,9 @@ impl CycleAssembler {
         protocol::encode(&Message::Sync { cycle }).unwrap_or(EMPTY)
     }
 
-    /// Takes one FEEDBACK frame; true once all six axes of this cycle are in. Another
-    /// cycle's feedback is counted as stale.
-    pub fn feedback(&mut self, f: &protocol::Feedback) -> bool {
-        self.feedback_frame(std::slice::from_ref(f))
-    }
-
     /// Takes one frame's feedback — one axis (FEEDBACK) or all six (FEEDBACK_FD); true once
     /// all six axes of this cycle are in. A frame of another cycle counts once as stale.
-    pub fn feedback_frame(&mut self, axes: &[protocol::Feedback]) -> bool {
+    pub fn feedback(&mut self, axes: &[protocol::Feedback]) -> bool {
         if axes
             .iter()
             .any(|f| f.cycle != self.cycle || !(1..=6).contains(&f.axis))

@@ -489,7 +489,7 @@ impl Link {
             self.asm.counters.stale += 1;
             return None;
         }
-        if self.asm.feedback_frame(axes) {
+        if self.asm.feedback(axes) {
             return self.close_window(now);
         }
         None
