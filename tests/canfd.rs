@@ -9,24 +9,31 @@ use pa10::model::Model;
 use pa10::sim::rig::Lockstep;
 use serde_json::{Value, json};
 
-/// `config/sim.yaml` on CAN FD (1 Mbit/s arbitration, `data_bitrate`) at `rate_hz`, with
-/// `edit` applied to the text.
+/// A `config/sim.yaml` text on CAN FD (1 Mbit/s arbitration, `data_bitrate` bit/s) at
+/// `rate_hz`.
+pub(crate) fn on_fd(sim_yaml: &str, rate_hz: f64, data_bitrate: f64) -> String {
+    sim_yaml
+        .replace(
+            "  bitrate: 1000000          # bit/s",
+            &format!("  bitrate: 1000000\n  fd: true\n  data_bitrate: {data_bitrate}"),
+        )
+        .replace("rate_hz: 500 ", &format!("rate_hz: {rate_hz} "))
+}
+
+/// `config/sim.yaml` (the tests' variant) [`on_fd`], loaded.
 fn fd_config(
     tag: &str,
     rate_hz: f64,
     data_bitrate: f64,
-    edit: &str,
 ) -> Result<pa10::daemon::config::Settings, ConfigError> {
     let dir = std::env::temp_dir().join(format!("pa10-canfd-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = crate::daemon::config(&dir, &Model::nominal());
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
-        .replace(
-            "  bitrate: 1000000          # bit/s",
-            &format!("  bitrate: 1000000\n  fd: true\n  data_bitrate: {data_bitrate}\n{edit}"),
-        )
-        .replace("rate_hz: 500 ", &format!("rate_hz: {rate_hz} "));
+    let text = on_fd(
+        &std::fs::read_to_string(&path).unwrap(),
+        rate_hz,
+        data_bitrate,
+    );
     std::fs::write(&path, text).unwrap();
     let loaded = Config::load(&path);
     std::fs::remove_dir_all(&dir).unwrap();
@@ -55,7 +62,7 @@ fn running(settings: &pa10::daemon::config::Settings) -> Lockstep {
 #[test]
 fn the_daemon_runs_the_simulated_arm_at_1_khz_on_can_fd() {
     let _busy = crate::common::busy_lock();
-    let settings = fd_config("1k", 1000.0, 5e6, "").unwrap();
+    let settings = fd_config("1k", 1000.0, 5e6).unwrap();
     assert_eq!(settings.link.framing, protocol::Framing::Fd);
     let mut ls = running(&settings);
     let st = status(&ls);
@@ -170,7 +177,7 @@ fn the_simulated_controller_answers_fd_commands_with_one_fd_feedback_frame() {
 #[test]
 fn the_feedback_timeout_stays_in_milliseconds_at_2_khz() {
     let _busy = crate::common::busy_lock();
-    let settings = fd_config("2k", 2000.0, 5e6, "").unwrap();
+    let settings = fd_config("2k", 2000.0, 5e6).unwrap();
     let mut ls = running(&settings);
     assert_eq!(status(&ls)["cycle"]["rate_hz"], 2000.0);
     ls.run_for(0.05);
@@ -194,13 +201,13 @@ fn the_feedback_timeout_stays_in_milliseconds_at_2_khz() {
 fn the_configuration_refuses_what_the_fd_bus_cannot_carry() {
     let err = |r: Result<_, ConfigError>| r.err().map(|e| e.to_string()).unwrap_or_default();
     // 3 kHz needs more than 90 % of 1/5 Mbit/s; the message names the highest rate
-    let e = err(fd_config("3k", 3000.0, 5e6, ""));
+    let e = err(fd_config("3k", 3000.0, 5e6));
     assert!(
         e.contains("control.rate_hz") && e.contains("max 2828 Hz"),
         "{e}"
     );
     // no faster data phase: 1 kHz does not fit
-    let e = err(fd_config("slow", 1000.0, 1e6, ""));
+    let e = err(fd_config("slow", 1000.0, 1e6));
     assert!(
         e.contains("control.rate_hz") && e.contains("max 883 Hz"),
         "{e}"
@@ -210,7 +217,7 @@ fn the_configuration_refuses_what_the_fd_bus_cannot_carry() {
         (0.5e6, "bus.data_bitrate"),
         (f64::NAN, "bus.data_bitrate"),
     ] {
-        let e = err(fd_config("bad", 1000.0, bad, ""));
+        let e = err(fd_config("bad", 1000.0, bad));
         assert!(e.contains(key), "{bad}: {e}");
     }
     // a data phase without FD is a contradiction, named

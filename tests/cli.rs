@@ -176,12 +176,7 @@ fn the_daemon_checks_its_config() {
         ),
     );
     // the CAN FD configuration: 1 kHz at 31.8 % worst case
-    let fd = text
-        .replace(
-            "  bitrate: 1000000          # bit/s",
-            "  bitrate: 1000000\n  fd: true\n  data_bitrate: 5000000",
-        )
-        .replace("rate_hz: 500 ", "rate_hz: 1000 ");
+    let fd = crate::canfd::on_fd(&text, 1000.0, 5e6);
     std::fs::write(dir.join("fd.yaml"), fd).unwrap();
     let o = pa10d(&["--check-config", dir.join("fd.yaml").to_str().unwrap()]);
     let s = String::from_utf8_lossy(&o.stdout);

@@ -152,26 +152,37 @@ sed -n '/^CAPTURE-BEGIN$/,/^CAPTURE-END$/p' "$work/console.txt" | grep '^(' > "$
 [ -s "$work/cap.log" ] || fail "no traffic captured"
 "$target/debug/pa10" sim decode "$work/cap.log" > "$work/expected.json" || fail "the codec cannot decode the capture"
 python3 "$root/tests/dbc/check_dbc.py" "$root/docs/pa10.dbc" "$work/cap.log" "$work/expected.json" || fail "cantools and the codec disagree on the capture"
-python3 - "$work/console.txt" <<'PY' || fail "scenario checks"
+# the moves a scenario printed (PREFIXn-OK q… then PREFIX-status lines) landed where they were sent
+cat > "$work/moves.py" <<'PY'
 import json, sys
-lines = open(sys.argv[1]).read().splitlines()
+console, move, status, count, framing = sys.argv[1:6]
+lines = open(console).read().splitlines()
 targets = {}
 for l in lines:
-    if l.startswith("MOVE") and ("-OK " in l or "-FAIL " in l):
+    if l.startswith(move) and ("-OK " in l or "-FAIL " in l):
         k, rest = l.split(" ", 1)
         assert k.endswith("-OK"), f"move failed: {l}"
-        targets[k[4:-3]] = [float(x) for x in rest.split()]
-assert len(targets) == 3, f"expected three moves, saw {targets}"
+        targets[k[len(move):-3]] = [float(x) for x in rest.split()]
+assert len(targets) == int(count), f"expected {count} moves, saw {targets}"
 for k, q in targets.items():
-    st = next(json.loads(l.split(" ", 1)[1]) for l in lines if l.startswith(f"STATUS{k} "))["status"]
+    st = next(json.loads(l.split(" ", 1)[1]) for l in lines if l.startswith(f"{status}{k} "))["status"]
     assert st["state"] == "holding", st
+    assert st["cycle"]["framing"] == framing, st["cycle"]
+    if framing == "fd":
+        assert st["link"]["incomplete"] == 0 or st["link"]["cycles"] > 50 * st["link"]["incomplete"], st["link"]
     for j in range(6):
         assert abs(st["setpoint"][j] - q[j]) < 1e-9, (k, j, st["setpoint"], q)
         # the resolver sits where the (rigid nominal) model puts the motor: at the setpoint
         assert abs(st["q_motor"][j] - q[j]) < 2e-3, (k, j, st["q_motor"], q)
+print(f"vcan: {count} {framing} moves landed")
+PY
+python3 "$work/moves.py" "$work/console.txt" MOVE STATUS 3 classic || fail "scenario checks"
+python3 - "$work/console.txt" <<'PY' || fail "scenario checks"
+import json, sys
+lines = open(sys.argv[1]).read().splitlines()
 after = next(json.loads(l.split(" ", 1)[1]) for l in lines if l.startswith("STATUS-AFTER-KILL "))["status"]
 assert after["state"] == "fault" and "stale feedback" in (after["fault"] or ""), after
-print(f"vcan: 3 moves landed, capture of {sum(1 for _ in open(sys.argv[1]))} console lines checked, feedback-timeout stop seen: {after['fault']}")
+print(f"vcan: capture of {len(lines)} console lines checked, feedback-timeout stop seen: {after['fault']}")
 PY
 grep -q VCAN-FD-UP "$work/console.txt" || fail "vcan1 (MTU 72) did not come up"
 grep "FD-ON-CLASSIC-REFUSED" "$work/console.txt" | grep -q "MTU 16, not a CAN FD interface" || fail "pa10d did not refuse CAN FD on vcan0 (MTU 16) with the MTU named"
@@ -179,27 +190,8 @@ sed -n '/^CAPFD-BEGIN$/,/^CAPFD-END$/p' "$work/console.txt" | grep '^(' > "$work
 grep -q '##' "$work/capfd.log" || fail "no CAN FD frames captured on vcan1"
 "$target/debug/pa10" sim decode "$work/capfd.log" > "$work/expected-fd.json" || fail "the codec cannot decode the FD capture"
 python3 "$root/tests/dbc/check_dbc.py" "$root/docs/pa10-fd.dbc" "$work/capfd.log" "$work/expected-fd.json" || fail "cantools and the codec disagree on the FD capture"
-python3 - "$work/console.txt" <<'PY' || fail "FD scenario checks"
-import json, sys
-lines = open(sys.argv[1]).read().splitlines()
-moves = {}
-for l in lines:
-    if l.startswith("FDMOVE") and ("-OK " in l or "-FAIL " in l):
-        k, rest = l.split(" ", 1)
-        assert k.endswith("-OK"), f"FD move failed: {l}"
-        moves[k[6:-3]] = [float(x) for x in rest.split()]
-assert len(moves) == 2, f"expected two FD moves, saw {moves}"
-for k, q in moves.items():
-    st = next(json.loads(l.split(" ", 1)[1]) for l in lines if l.startswith(f"FDSTATUS{k} "))["status"]
-    assert st["state"] == "holding", st
-    assert st["cycle"]["framing"] == "fd", st["cycle"]
-    assert st["link"]["incomplete"] == 0 or st["link"]["cycles"] > 50 * st["link"]["incomplete"], st["link"]
-    for j in range(6):
-        assert abs(st["setpoint"][j] - q[j]) < 1e-9, (k, j, st["setpoint"], q)
-        assert abs(st["q_motor"][j] - q[j]) < 2e-3, (k, j, st["q_motor"], q)
-fd = sum(1 for l in lines if l.startswith("(") and "##" in l)
-print(f"vcan: CAN FD: 2 moves landed, {fd} FD frames in the capture, framing fd in status")
-PY
+python3 "$work/moves.py" "$work/console.txt" FDMOVE FDSTATUS 2 fd || fail "FD scenario checks"
+echo "vcan: CAN FD: $(grep -c '##' "$work/capfd.log") FD frames in the capture"
 # ten checks: vcan up, capture decoded, DBC agrees, three moves landed, feedback-timeout stop;
 # vcan1 (MTU 72) up, FD refused on MTU 16, FD capture decoded, FD DBC agrees, two FD moves landed
 echo "vcan: 10 passed, 0 failed"
