@@ -13,13 +13,25 @@ the link angle is q_j = θ_j + δ_j and the link bodies (masses, centres, cylind
 with it. Gravity acts; a load hangs at the tool as a point mass. The servo controller's
 motor-side speed loop (PI on θ̇, torque-limited) runs at every physics step.
 
+Two friction behaviours of the drives (`friction_model`):
+  * `creep` (default): MuJoCo's `frictionloss` (a soft constraint): a joint at rest creeps until
+    the held friction torque is gone, so at rest the current is the spring's torque;
+  * `stick`: a harmonic drive that sticks (this file's own code, not MuJoCo's): in motion a
+    Stribeck curve, τ_f = −sign(θ̇)·(Fc + (Fs − Fc)·exp(−(θ̇/vs)²)) with the static level
+    Fs = 1.6·Fc and vs = 0.01 rad/s; a motor whose speed crosses zero while the torque on its
+    rotor (speed loop + spring − viscous) is within ±Fs sticks: it is pinned where it is and
+    the friction takes whatever torque the rotor carries, so at rest the current holds the
+    spring's torque *plus* a held friction that depends on how the joint came to rest, until
+    the rotor's torque exceeds Fs (breakaway).
+
 Hidden departures (seeded, within the facts' uncertainty): geometry within the seed paper's
 machining tolerances (a, d ±0.25 mm, α ±1 mrad, joint zeros ±0.5 mrad, Hayati β on the parallel
 J2-J3 ±1 mrad), link masses ±10 %, centres of mass ±10 mm, stiffness ±15 %, springs on
 J1/J4/J6 that the daemon's model calls rigid.
 
 Protocol (JSON lines on stdin, one JSON line answered on stdout per request):
-  {"op": "reset", "q": [6] rad, "load_kg": m, "friction": 0..10 (Coulomb scale), "seed": n, "tool": [3] m}
+  {"op": "reset", "q": [6] rad, "load_kg": m, "friction": 0..10 (Coulomb scale), "seed": n, "tool": [3] m,
+   "friction_model": "creep" | "stick"}
       the arm at rest at link angles q (motor angles and springs in equilibrium), the tool
       point (and the load) at `tool` in the flange frame; answers the state and "dt"
   {"op": "step", "dt": s, "speed": [6] rad/s, "brake": bool}
@@ -69,6 +81,10 @@ TORQUE_LIMIT = [450.0, 900.0, 450.0, 150.0, 150.0, 60.0]
 KP = [400.0, 400.0, 300.0, 80.0, 80.0, 8.0]  # N·m·s/rad
 KI = [8000.0, 8000.0, 6000.0, 1600.0, 1600.0, 160.0]  # N·m/rad
 SPRING_DAMPING = 0.002  # s: spring damping = this × k
+# the sticking drive (friction_model "stick"): static over Coulomb level, Stribeck speed (rad/s)
+STATIC_RATIO = 1.6
+STRIBECK_SPEED = 0.01
+FRICTION_MODELS = ("creep", "stick")
 DT = 0.0005  # physics step, s
 
 
@@ -202,7 +218,10 @@ def mjcf(truth, tool=(0.0, 0.0, 0.1)):
 
 
 class Plant:
-    def __init__(self, seed=1, friction=1.0, tool=(0.0, 0.0, 0.1)):
+    def __init__(self, seed=1, friction=1.0, tool=(0.0, 0.0, 0.1), friction_model="creep"):
+        if friction_model not in FRICTION_MODELS:
+            raise ValueError(f"friction_model: one of {', '.join(FRICTION_MODELS)}, got {friction_model!r}")
+        self.sticking = friction_model == "stick"
         self.truth = Truth(seed)
         self.model = mujoco.MjModel.from_xml_string(mjcf(self.truth, tool))
         self.data = mujoco.MjData(self.model)
@@ -220,13 +239,51 @@ class Plant:
         self.speed = np.zeros(6)
         self.tau_m = np.zeros(6)
         self.held = None  # motor angles the brakes hold, or None (servo on)
+        self.stuck = np.ones(6, dtype=bool)  # "stick": which drives are stuck
+        self.anchor = np.zeros(6)  # "stick": where each stuck motor is pinned, rad
 
     def set_friction(self, scale):
         """Scales the drives' dry (Coulomb) friction; the viscous part always acts (it is also
-        the damping that keeps a loaded wrist from ringing)."""
+        the damping that keeps a loaded wrist from ringing). With sticking drives the dry part
+        is this file's Stribeck model (`dry`), not MuJoCo's `frictionloss`."""
+        self.coulomb = np.array(COULOMB) * scale
         for j in range(6):
-            self.model.dof_frictionloss[self.mv[j]] = COULOMB[j] * scale
+            self.model.dof_frictionloss[self.mv[j]] = 0.0 if self.sticking else self.coulomb[j]
             self.model.dof_damping[self.mv[j]] = VISCOUS[j]
+
+    def rotor_torque(self, tau):
+        """The torque on each rotor besides its dry friction, N·m (link side): the speed loop's,
+        the spring's reaction, minus the viscous drag: J·θ̈ = this + dry friction."""
+        d = self.data
+        v, delta, ddelta = d.qvel[self.mv], d.qpos[self.sq], d.qvel[self.sv]
+        return tau + self.spring(delta) + SPRING_DAMPING * self.k1 * ddelta - np.array(VISCOUS) * v
+
+    def dry(self, tau):
+        """The sticking drives' dry friction this step, N·m; unsticks the drives whose rotor
+        torque exceeds the static level (breakaway)."""
+        n = self.rotor_torque(tau)
+        fs = STATIC_RATIO * self.coulomb
+        self.stuck &= np.abs(n) <= fs
+        v = self.data.qvel[self.mv]
+        stribeck = self.coulomb + (fs - self.coulomb) * np.exp(-((v / STRIBECK_SPEED) ** 2))
+        # a drive breaking away starts against its static level, in the direction it is pushed
+        slip = np.where(v != 0.0, -np.sign(v) * stribeck, -np.sign(n) * fs)
+        return np.where(self.stuck, -n, slip)
+
+    def stick_after(self, tau, v_before):
+        """After a step: a moving drive whose speed crossed zero sticks when its rotor torque
+        is within the static level; stuck drives stay pinned."""
+        d = self.data
+        v = d.qvel[self.mv]
+        # a drive that just broke away (its speed was 0) is not stopping
+        crossed = (v * v_before <= 0.0) & (v_before != 0.0)
+        n = self.rotor_torque(tau)
+        new = ~self.stuck & crossed & (np.abs(n) <= STATIC_RATIO * self.coulomb)
+        self.anchor = np.where(new, d.qpos[self.mq], self.anchor)
+        self.stuck |= new
+        for j in np.flatnonzero(self.stuck):
+            d.qpos[self.mq[j]] = self.anchor[j]
+            d.qvel[self.mv[j]] = 0.0
 
     def spring(self, delta):
         return self.k1 * delta + self.k3 * delta**3
@@ -257,6 +314,8 @@ class Plant:
         self.integral = self.tau_m / np.array(KI)
         self.speed = np.zeros(6)
         self.held = None
+        self.stuck[:] = True
+        self.anchor = d.qpos[self.mq].copy()
         return self.state()
 
     def step(self, dt, speed, brake=False):
@@ -270,6 +329,8 @@ class Plant:
             self.held = None
             mujoco.mj_forward(self.model, d)
             self.integral = d.qfrc_bias[self.mv] / np.array(KI)
+            self.stuck[:] = True
+            self.anchor = d.qpos[self.mq].copy()
         for _ in range(n):
             if self.held is not None:
                 d.qfrc_applied[:] = 0
@@ -287,9 +348,12 @@ class Plant:
             self.tau_m = tau
             delta = d.qpos[self.sq]
             d.qfrc_applied[:] = 0
-            d.qfrc_applied[self.mv] = tau
+            d.qfrc_applied[self.mv] = tau + (self.dry(tau) if self.sticking else 0.0)
             d.qfrc_applied[self.sv] = -self.spring(delta)
+            v_before = d.qvel[self.mv].copy()
             mujoco.mj_step(self.model, d)
+            if self.sticking:
+                self.stick_after(tau, v_before)
         return self.state()
 
     def state(self):
@@ -330,7 +394,7 @@ def serve():
                 load_kg = float(r.get("load_kg", 0.0))
                 if not (0 <= load_kg <= 100):
                     raise ValueError("load_kg: 0..100 kg")
-                plant = Plant(int(r.get("seed", 1)), friction, tool)
+                plant = Plant(int(r.get("seed", 1)), friction, tool, str(r.get("friction_model", "creep")))
                 out = plant.reset(q, load_kg)
                 out["dt"] = DT
             elif op == "step" and plant is not None:
@@ -360,8 +424,8 @@ def selftest():
     """Physics the judge relies on, measured (docs/judge.md)."""
     q = [0.0, 0.6, 1.2, 0.0, 0.5, 0.0]
     res = {}
-    for friction in (0.0, 1.0):
-        p = Plant(seed=3, friction=friction)
+    for friction, fmodel in ((0.0, "creep"), (1.0, "creep"), (1.0, "stick")):
+        p = Plant(seed=3, friction=friction, friction_model=fmodel)
         s0 = p.reset(q, load_kg=9.18)  # 90 N
         # 1. at rest: the springs carry gravity, the link hangs below the motor angles
         s = p.step(1.0, [0.0] * 6)
@@ -379,7 +443,8 @@ def selftest():
             p.step(0.1, [0, 0.4, -0.4, 0, 0.4, 0])
         s = p.step(1.0, [0.0] * 6)
         moving = p.data.qvel[p.mv]
-        res[f"friction_{friction:g}"] = {
+        key = f"friction_{friction:g}" + ("_stick" if fmodel == "stick" else "")
+        res[key] = {
             "rest_drift_rad": drift,
             "sag_rad_J2_J3_J5": [sag[1], sag[2], sag[4]],
             "j2_bias_up_nm": bias[1],
@@ -412,6 +477,18 @@ def check(res):
             bad.append(f"friction on: J2 bias {b:.3g} N·m, expected {sign * expected:.3g}")
     if max(abs(x) for x in f0["spring_vs_motor_torque_at_rest_nm"]) > 0.05:
         bad.append("friction off: motor and spring torques differ at rest")
+    # sticking drives: the Coulomb level in slow motion (Stribeck's excess gone at 5 vs), and
+    # at rest a held friction within the static level that the spring does not see
+    st = res["friction_1_stick"]
+    for b, sign in ((st["j2_bias_up_nm"], 1), (st["j2_bias_down_nm"], -1)):
+        if abs(b - sign * expected) > 0.05 * expected:
+            bad.append(f"sticking: J2 bias {b:.3g} N·m in slow motion, expected {sign * expected:.3g}")
+    held = st["spring_vs_motor_torque_at_rest_nm"]
+    static = [STATIC_RATIO * COULOMB[j] for j in (1, 2, 4)]
+    if any(abs(h) > s + 1e-6 for h, s in zip(held, static)):
+        bad.append(f"sticking: held friction {held} N·m beyond the static level {static}")
+    if max(abs(h) / COULOMB[j] for h, j in zip(held, (1, 2, 4))) < 0.1:
+        bad.append(f"sticking: no held friction at rest ({held} N·m): the drives do not stick")
     return bad
 
 
