@@ -12,8 +12,10 @@
 //!    against the trajectory's desired positions, every cycle.
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--seed N]
-//! [--friction F] [--torque-source measured|model|blended] [--current-filter-hz HZ]` — needs `pip install mujoco` (the Python
-//! interpreter `PA10_PYTHON`, default `python3`). docs/judge.md quotes it.
+//! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended]
+//! [--current-filter-hz HZ]` — needs `pip install mujoco` (the Python interpreter
+//! `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another plant script speaking
+//! docs/plant-protocol.md). docs/judge.md quotes it.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -27,6 +29,7 @@ use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
+use pa10::sim::plant::FrictionModel;
 use pa10::sim::rig::{HOME, Lockstep, truth_for};
 use pa10::sim::servo::{ServoConfig, ServoSim};
 use rand::SeedableRng;
@@ -49,6 +52,7 @@ struct Opts {
     check: bool,
     seed: u64,
     friction: f64,
+    friction_model: FrictionModel,
     torque_source: String,
     /// The daemon's `current_filter_hz` (for `torque_source: measured`), Hz.
     filter_hz: Option<f64>,
@@ -61,6 +65,7 @@ fn opts() -> Result<Opts> {
         check: false,
         seed: 1,
         friction: 1.0,
+        friction_model: FrictionModel::Creep,
         torque_source: "blended".into(),
         filter_hz: None,
     };
@@ -82,6 +87,13 @@ fn opts() -> Result<Opts> {
                     o.friction
                 );
             }
+            "--friction-model" => {
+                o.friction_model = match value("--friction-model")?.as_str() {
+                    "creep" => FrictionModel::Creep,
+                    "stick" => FrictionModel::Stick,
+                    other => bail!("--friction-model: creep or stick, got {other}"),
+                }
+            }
             "--torque-source" => {
                 o.torque_source = value("--torque-source")?;
                 ensure!(
@@ -98,7 +110,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --seed N, --friction F, --torque-source measured|model|blended, --current-filter-hz HZ)"
+                "unknown argument {other} (--json, --quick, --check, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended, --current-filter-hz HZ)"
             ),
         }
     }
@@ -143,6 +155,7 @@ struct Outcome {
     tracking: Tracking,
     friction: bool,
     friction_scale: f64,
+    friction_model: FrictionModel,
     /// Time from the end of a validation move until the arm was still, mean, s: nominal,
     /// calibrated
     move_settle_mean_s: (f64, f64),
@@ -260,9 +273,11 @@ fn rig(settings: &Settings, o: &Opts) -> Result<Lockstep> {
     let (truth, seed) = truth_for(settings)?;
     let mut mo = MujocoOptions::new(o.seed, HOME);
     mo.friction = o.friction;
-    if let Some(p) = std::env::var_os("PA10_PYTHON") {
-        mo.python = PathBuf::from(p);
+    mo.friction_model = o.friction_model;
+    if let Some(script) = std::env::var_os("PA10_PLANT") {
+        mo.command[1] = script.to_string_lossy().into_owned();
     }
+    let mut mo = mo.honouring_pa10_python();
     let tool = CampaignSpec::default().tool.translation.vector;
     mo.tool = [tool.x, tool.y, tool.z];
     let plant = MujocoPlant::start(&mo).context(
@@ -572,6 +587,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         tracking,
         friction: o.friction > 0.0,
         friction_scale: o.friction,
+        friction_model: o.friction_model,
         move_settle_mean_s: (mean(&move_settle_s[0]), mean(&move_settle_s[1])),
         ring,
         validation_faults: faults,
@@ -760,9 +776,10 @@ fn track(ls: &mut Lockstep) -> Result<(f64, f64, String)> {
 
 fn print(o: &Outcome) {
     println!(
-        "MuJoCo judge (plant seed {}, friction ×{}, torque source {}): {} calibration rows, {} novel poses, {:.0} s simulated in {:.0} s",
+        "MuJoCo judge (plant seed {}, friction ×{} {:?}, torque source {}): {} calibration rows, {} novel poses, {:.0} s simulated in {:.0} s",
         o.seed,
         o.friction_scale,
+        o.friction_model,
         o.torque_source,
         o.calibration_rows,
         o.validation_poses,

@@ -209,6 +209,10 @@ pub struct SimConfig {
     /// Seed of the drawn truth and of the sensor noise.
     #[serde(default)]
     pub seed: u64,
+    /// The physics the simulated controller drives (`docs/plant-protocol.md`): the in-process
+    /// model plant by default, or MuJoCo's (any process speaking the plant protocol).
+    #[serde(default)]
+    pub plant: crate::sim::plant::PlantConfig,
 }
 
 /// Everything `pa10d` reads.
@@ -563,6 +567,10 @@ impl Config {
                     format!("{} does not exist", base.join(t).display()),
                 ));
             }
+            (_, Some(sim)) => sim
+                .plant
+                .validate()
+                .map_err(|(key, reason)| invalid(format!("sim.plant.{key}"), reason))?,
             _ => {}
         }
         self.record.validate().map_err(|e| invalid("record", e))?;
@@ -624,6 +632,10 @@ impl Config {
             sim: sim.map(|s| SimConfig {
                 truth: s.truth.map(|t| base.join(t)),
                 seed: s.seed,
+                plant: crate::sim::plant::PlantConfig {
+                    dir: Some(base.to_path_buf()),
+                    ..s.plant
+                },
             }),
         })
     }

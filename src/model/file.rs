@@ -76,6 +76,11 @@ pub struct ModelFile {
     /// the fields above; the others, e.g. thermal expansion, are not compensated at run time).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub discovered: Vec<EffectRecord>,
+    /// Joint friction at the link side (`null`: not identified), as `pa10 identify` measured it
+    /// from the arm's own motion; the daemon's `estimated` torque source subtracts it from the
+    /// currents in motion.
+    #[serde(default, skip_serializing_if = "no_friction")]
+    pub friction: [Option<Friction>; 6],
     /// How well the calibration determined the 30 parameters (`pa10 calibrate` writes it; the
     /// daemon reports the tool position uncertainty it implies at the setpoint).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -97,6 +102,66 @@ pub struct ParamCovariance {
 
 fn all_none(v: &[Option<JointError>; 6]) -> bool {
     v.iter().all(Option::is_none)
+}
+
+fn no_friction(v: &[Option<Friction>; 6]) -> bool {
+    v.iter().all(Option::is_none)
+}
+
+/// One joint's friction, link side: `τ_f = coulomb·sign(q̇) + viscous·q̇` in motion (what the
+/// motor current carries beyond the spring's torque at constant speed). At rest a drive
+/// holds anything within its breakaway level: the current there says nothing of the spring.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Friction {
+    /// Coulomb level, N·m (≥ 0).
+    pub coulomb: f64,
+    /// Viscous coefficient, N·m·s/rad (≥ 0).
+    pub viscous: f64,
+    /// Standard errors of `coulomb` (N·m) and `viscous` (N·m·s/rad) from the identification.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<[f64; 2]>,
+}
+
+impl Friction {
+    /// The friction torque at link speed `qd` (rad/s), N·m; zero at exactly zero speed.
+    #[inline]
+    pub fn torque(&self, qd: f64) -> f64 {
+        let sign = if qd > 0.0 {
+            1.0
+        } else if qd < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        self.coulomb * sign + self.viscous * qd
+    }
+
+    /// Checks the values; the offending field and why.
+    pub fn validate(&self, key: &str) -> Result<(), (String, String)> {
+        let fields = [("coulomb", self.coulomb, "N·m"), ("viscous", self.viscous, "N·m·s/rad")];
+        for (name, v, unit) in fields {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err((format!("{key}.{name}"), format!("must be finite and ≥ 0 {unit}, got {v}")));
+            }
+        }
+        if let Some(s) = self.sigma
+            && s.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+        {
+            return Err((format!("{key}.sigma"), format!("standard errors must be finite and ≥ 0, got {s:?}")));
+        }
+        Ok(())
+    }
+}
+
+/// Standard errors of an identified body's mass (kg) and centre of mass (m).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySigma {
+    /// Of the mass, kg.
+    pub mass: f64,
+    /// Of the centre of mass, m, in the body's frame.
+    pub com: [f64; 3],
 }
 
 impl ParamCovariance {
@@ -168,6 +233,9 @@ pub struct Body {
     pub mass: f64,
     /// Centre of mass in that DH frame, metres.
     pub com: [f64; 3],
+    /// Standard errors, when `pa10 identify` measured the body (absent: a seed value).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<BodySigma>,
 }
 
 /// Joint position and speed limits, link side.

@@ -26,7 +26,9 @@ mod statics;
 pub mod urdf;
 
 pub use compliance::Stiffness;
-pub use file::{Body, EffectRecord, JointLimits, ModelFile, ParamCovariance, PoseData};
+pub use file::{
+    Body, BodySigma, EffectRecord, Friction, JointLimits, ModelFile, ParamCovariance, PoseData,
+};
 pub use ik::{IkError, IkSolutions, MAX_SOLUTIONS};
 pub use joint_error::{DEFAULT_GEAR_RATIO, JointError};
 pub use kinematics::{

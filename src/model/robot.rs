@@ -267,6 +267,11 @@ impl Model {
         &self.data
     }
 
+    /// Joint `j`'s identified friction (0-based), if any.
+    pub fn friction(&self, j: usize) -> Option<crate::model::Friction> {
+        self.data.friction.get(j).copied().flatten()
+    }
+
     /// Joint limits.
     pub fn limits(&self) -> &JointLimits {
         &self.data.joint_limits
@@ -447,6 +452,12 @@ fn validate(d: &ModelFile) -> Result<(), ModelError> {
     for (j, e) in d.joint_errors.iter().enumerate() {
         if let Some(e) = e {
             e.validate(&format!("joint_errors[{j}]"))
+                .map_err(|(key, reason)| invalid(key, reason))?;
+        }
+    }
+    for (j, f) in d.friction.iter().enumerate() {
+        if let Some(f) = f {
+            f.validate(&format!("friction[{j}]"))
                 .map_err(|(key, reason)| invalid(key, reason))?;
         }
     }

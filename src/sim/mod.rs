@@ -150,6 +150,7 @@ impl TrueRobot {
             frame: 6,
             mass: 2.4,
             com: [0.0, 0.0, 0.5 * tool_len],
+            sigma: None,
         });
         d.tool = PoseData::from(tool);
         let yaw = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);

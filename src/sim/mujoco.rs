@@ -2,27 +2,34 @@
 //!
 //! [`MujocoPlant`] starts `tests/mujoco/plant.py` (a PA10-6C written from the robot's published
 //! facts with hidden departures, rotor inertia, friction and flexible joints; it shares no code
-//! with pa10) and speaks its stepped JSON-lines protocol over the child's stdin/stdout: `reset`
+//! with pa10) — or any command speaking the same protocol, `docs/plant-protocol.md` — and speaks
+//! its stepped JSON-lines protocol over the child's stdin/stdout: `reset`
 //! once, then `step` with the speed loop's reference and the brake, `load` for the weight rack.
 //! The controller's time is cut into the plant's physics steps (0.5 ms); a call that does not
 //! complete a step only accumulates time. A controlled stop ramps the speed reference down at
 //! the stop deceleration, as a servo drive does.
 //!
-//! Limits: every answer line is at most [`MAX_LINE`] bytes and must parse; the first failure
-//! (the process died, an answer that is not the protocol) freezes the plant and is reported by
-//! [`Plant::failure`] — a judge checks it before it trusts a number.
+//! Limits: every answer line is at most [`MAX_LINE`] bytes, arrives within [`ANSWER_TIMEOUT`]
+//! and must parse; the first failure (the process died or hung, an answer that is not the
+//! protocol) freezes the plant and is reported by [`Plant::failure`] — a judge checks it before
+//! it trusts a number.
 
 use std::io::{BufRead, BufReader, Read, Write};
 use std::path::PathBuf;
-use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender, sync_channel};
+use std::time::Duration;
 
 use serde::Deserialize;
 
-use super::plant::{Drive, Plant};
+use super::plant::{Drive, FrictionModel, Plant, PlantConfig};
 use crate::model::{Frame as Pose, frame_from_pose};
 
 /// Longest answer line accepted from the plant process, bytes.
 pub const MAX_LINE: usize = 64 * 1024;
+
+/// Longest wait for one answer (a reset builds the model; a step is milliseconds).
+pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// Standard gravity the plant uses, m/s² (a load in N becomes a mass in kg).
 const G: f64 = 9.80665;
@@ -30,14 +37,16 @@ const G: f64 = 9.80665;
 /// How to start the MuJoCo plant.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MujocoOptions {
-    /// The Python interpreter (with `mujoco` installed).
-    pub python: PathBuf,
-    /// The plant script, `tests/mujoco/plant.py`.
-    pub script: PathBuf,
+    /// The program and its arguments (`python3 tests/mujoco/plant.py`).
+    pub command: Vec<String>,
+    /// The folder the command runs in (absent: this process's).
+    pub dir: Option<PathBuf>,
     /// Seed of the plant's hidden departures (masses, centres, stiffness, geometry).
     pub seed: u64,
     /// Scale of the plant's friction (0: none, 1: the realistic level of docs/judge.md).
     pub friction: f64,
+    /// How the dry friction behaves at rest.
+    pub friction_model: FrictionModel,
     /// The tool point (and where a load hangs) in the flange frame, m.
     pub tool: [f64; 3],
     /// Link angles the arm starts at rest at, rad.
@@ -49,13 +58,45 @@ impl MujocoOptions {
     /// friction, a tool 0.35 m along the flange axis (the campaigns' tooling ball).
     pub fn new(seed: u64, q0: [f64; 6]) -> Self {
         Self {
-            python: PathBuf::from("python3"),
-            script: PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/mujoco/plant.py"),
+            command: vec!["python3".into(), Self::script()],
+            dir: None,
             seed,
             friction: 1.0,
+            friction_model: FrictionModel::Creep,
             tool: [0.0, 0.0, 0.35],
             q0,
         }
+    }
+
+    /// This build tree's `tests/mujoco/plant.py`.
+    pub fn script() -> String {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/mujoco/plant.py")
+            .display()
+            .to_string()
+    }
+
+    /// The options a validated `sim.plant` section gives (its seed, else `sim_seed`), the arm
+    /// at rest at `q0` (rad) with the tool point at `tool` in the flange frame (m).
+    pub fn from_config(c: &PlantConfig, sim_seed: u64, tool: [f64; 3], q0: [f64; 6]) -> Self {
+        let mut o = Self::new(c.seed.unwrap_or(sim_seed), q0);
+        if let Some(cmd) = &c.command {
+            o.command = cmd.clone();
+        }
+        o.dir = c.dir.clone();
+        o.friction = c.friction.unwrap_or(1.0);
+        o.friction_model = c.friction_model;
+        o.tool = tool;
+        o
+    }
+
+    /// `$PA10_PYTHON <script>` when that variable is set (the judges' interpreter), else the
+    /// command as it is.
+    pub fn honouring_pa10_python(mut self) -> Self {
+        if let (Some(p), Some(script)) = (std::env::var_os("PA10_PYTHON"), self.command.get(1)) {
+            self.command = vec![p.to_string_lossy().into_owned(), script.clone()];
+        }
+        self
     }
 }
 
@@ -97,7 +138,8 @@ struct State {
 pub struct MujocoPlant {
     child: Child,
     input: ChildStdin,
-    output: BufReader<ChildStdout>,
+    /// Answer lines from the reader thread (each at most [`MAX_LINE`] bytes, or why not).
+    answers: Receiver<Result<String, String>>,
     state: State,
     step_s: f64,
     /// Simulated time not yet stepped, s.
@@ -120,19 +162,31 @@ impl MujocoPlant {
         if opts.q0.iter().chain(&opts.tool).any(|v| !v.is_finite()) {
             return Err(MujocoError::Option("q0/tool: finite rad and m".into()));
         }
-        let mut child = Command::new(&opts.python)
-            .arg(&opts.script)
+        let Some((program, args)) = opts.command.split_first() else {
+            return Err(MujocoError::Option("command: needs a program".into()));
+        };
+        let mut cmd = Command::new(program);
+        cmd.args(args)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
-            .spawn()?;
+            .stderr(Stdio::inherit());
+        if let Some(d) = &opts.dir {
+            cmd.current_dir(d);
+        }
+        let mut child = cmd.spawn().map_err(|e| {
+            MujocoError::Option(format!("command {:?} could not start: {e}", opts.command))
+        })?;
         let (Some(input), Some(output)) = (child.stdin.take(), child.stdout.take()) else {
             return Err(MujocoError::Protocol("no pipes".into()));
         };
+        let (tx, answers) = sync_channel(1);
+        std::thread::Builder::new()
+            .name("pa10-plant-reader".into())
+            .spawn(move || read_answers(output, tx))?;
         let mut plant = Self {
             child,
             input,
-            output: BufReader::new(output),
+            answers,
             state: State::default(),
             step_s: 0.0,
             pending_s: 0.0,
@@ -142,7 +196,7 @@ impl MujocoPlant {
         };
         let reset = serde_json::json!({
             "op": "reset", "q": opts.q0, "tool": opts.tool, "seed": opts.seed,
-            "friction": opts.friction, "load_kg": 0.0,
+            "friction": opts.friction, "load_kg": 0.0, "friction_model": opts.friction_model,
         });
         plant.state = plant.request(&reset)?;
         plant.step_s = match plant.state.dt {
@@ -164,18 +218,19 @@ impl MujocoPlant {
     fn request(&mut self, req: &serde_json::Value) -> Result<State, MujocoError> {
         writeln!(self.input, "{req}")?;
         self.input.flush()?;
-        self.line.clear();
-        let n = (&mut self.output)
-            .take(MAX_LINE as u64 + 1)
-            .read_line(&mut self.line)?;
-        if n == 0 {
-            return Err(MujocoError::Protocol("nothing: the process ended".into()));
-        }
-        if n > MAX_LINE {
-            return Err(MujocoError::Protocol(format!(
-                "a line over {MAX_LINE} bytes"
-            )));
-        }
+        self.line = match self.answers.recv_timeout(ANSWER_TIMEOUT) {
+            Ok(Ok(line)) => line,
+            Ok(Err(why)) => return Err(MujocoError::Protocol(why)),
+            Err(RecvTimeoutError::Timeout) => {
+                return Err(MujocoError::Protocol(format!(
+                    "nothing within {} s",
+                    ANSWER_TIMEOUT.as_secs()
+                )));
+            }
+            Err(RecvTimeoutError::Disconnected) => {
+                return Err(MujocoError::Protocol("nothing: the process ended".into()));
+            }
+        };
         let s: State = match serde_json::from_str(&self.line) {
             Ok(s) => s,
             Err(e) => {
@@ -199,6 +254,25 @@ impl MujocoPlant {
         match self.request(&req) {
             Ok(s) => self.state = s,
             Err(e) => self.failure = Some(e.to_string()),
+        }
+    }
+}
+
+/// The reader thread: one answer line at a time (at most [`MAX_LINE`] bytes) to `tx`, until
+/// the process ends, a line is too long, or nobody listens.
+fn read_answers(output: impl Read, tx: SyncSender<Result<String, String>>) {
+    let mut output = BufReader::new(output);
+    loop {
+        let mut line = String::with_capacity(1024);
+        let msg = match (&mut output).take(MAX_LINE as u64 + 1).read_line(&mut line) {
+            Ok(0) => Err("nothing: the process ended".to_string()),
+            Ok(n) if n > MAX_LINE => Err(format!("a line over {MAX_LINE} bytes")),
+            Ok(_) => Ok(line),
+            Err(e) => Err(format!("unreadable output: {e}")),
+        };
+        let last = msg.is_err();
+        if tx.send(msg).is_err() || last {
+            return;
         }
     }
 }

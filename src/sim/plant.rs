@@ -7,9 +7,115 @@
 //! current carries, and, for the judge only, the link angles and the tool pose. Two plants:
 //! [`ModelPlant`] (the default, in-process: a first-order speed loop and the truth model's
 //! statics) and [`MujocoPlant`](super::mujoco::MujocoPlant) (a physics engine we did not write,
-//! in its own process: `tests/mujoco/plant.py`).
+//! in its own process: `tests/mujoco/plant.py`, or any process speaking
+//! `docs/plant-protocol.md`). [`PlantConfig`] is the `sim.plant` section that chooses one.
+
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
 
 use crate::model::{ExternalLoad, Frame as Pose, Model, Torques};
+
+/// Which physics the simulated arm runs on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PlantKind {
+    /// [`ModelPlant`]: in-process, the hidden truth model's statics (fast, no dynamics).
+    #[default]
+    Model,
+    /// A process speaking the stepped plant protocol (`docs/plant-protocol.md`): by default
+    /// this crate's MuJoCo PA10, `tests/mujoco/plant.py`.
+    Mujoco,
+}
+
+/// How the drives' dry friction behaves at rest (the plant protocol's `friction_model`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FrictionModel {
+    /// MuJoCo's `frictionloss`: a joint at rest creeps until no friction torque is held.
+    #[default]
+    Creep,
+    /// A sticking harmonic drive: Stribeck curve in motion, breakaway at 1.6× Coulomb, and
+    /// at rest a held torque the spring does not see.
+    Stick,
+}
+
+/// Longest plant command accepted (program and arguments).
+pub const MAX_COMMAND_ARGS: usize = 64;
+
+/// The `sim.plant` section of the daemon's configuration: the physics of the simulated arm.
+///
+/// ```yaml
+/// sim:
+///   plant:
+///     kind: mujoco                                  # model (default) | mujoco
+///     command: [python3, ../tests/mujoco/plant.py]  # run in the config file's folder
+///     seed: 1                                       # default: sim.seed
+///     friction: 1.0                                 # scale of the dry friction, 0…10
+///     friction_model: stick                         # creep (default) | stick
+/// ```
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct PlantConfig {
+    /// Which physics.
+    #[serde(default)]
+    pub kind: PlantKind,
+    /// `mujoco`: the program and its arguments, started in [`PlantConfig::dir`] (the
+    /// configuration file's folder); absent: `python3` and this build tree's
+    /// `tests/mujoco/plant.py`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub command: Option<Vec<String>>,
+    /// `mujoco`: seed of the plant's hidden departures; absent: `sim.seed`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// `mujoco`: scale of the drives' dry friction (0: none, 1: the plant's realistic level),
+    /// 0…10; absent: 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
+    /// `mujoco`: how the dry friction behaves at rest.
+    #[serde(default)]
+    pub friction_model: FrictionModel,
+    /// Where the command runs (set from the configuration file's folder when it is read).
+    #[serde(skip)]
+    pub dir: Option<PathBuf>,
+}
+
+impl PlantConfig {
+    /// Checks every field: the offending key (below `sim.plant`) and why.
+    pub fn validate(&self) -> Result<(), (&'static str, String)> {
+        if let Some(f) = self.friction
+            && !(f.is_finite() && (0.0..=10.0).contains(&f))
+        {
+            return Err(("friction", format!("a scale 0…10 of the plant's dry friction, got {f}")));
+        }
+        if let Some(c) = &self.command {
+            if c.is_empty() || c[0].trim().is_empty() {
+                return Err(("command", "needs a program, e.g. [python3, plant.py]".into()));
+            }
+            if c.len() > MAX_COMMAND_ARGS {
+                return Err((
+                    "command",
+                    format!("at most {MAX_COMMAND_ARGS} words, got {}", c.len()),
+                ));
+            }
+            if c.iter().any(|w| w.contains('\0')) {
+                return Err(("command", "a word holds a NUL byte".into()));
+            }
+        }
+        if self.kind == PlantKind::Model
+            && (self.command.is_some()
+                || self.friction.is_some()
+                || self.seed.is_some()
+                || self.friction_model != FrictionModel::Creep)
+        {
+            return Err((
+                "kind",
+                "command, seed, friction and friction_model are for `kind: mujoco` (the in-process model plant has no friction)".into(),
+            ));
+        }
+        Ok(())
+    }
+}
 
 /// What the servo controller's speed loop asks of the plant for one step.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -14,6 +14,8 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+use super::mujoco::{MujocoError, MujocoOptions, MujocoPlant};
+use super::plant::{ModelPlant, Plant, PlantKind};
 use super::servo::{self, ServoConfig, ServoSim, SharedServo};
 use super::{SimNoise, TrueRobot};
 use crate::can::protocol::CanFrame;
@@ -43,6 +45,9 @@ pub enum RigError {
     /// The simulator's runtime.
     #[error("simulator runtime: {0}")]
     Runtime(#[from] std::io::Error),
+    /// The `sim.plant` process (`kind: mujoco`).
+    #[error("sim.plant: {0} (MuJoCo's plant needs `pip install mujoco`)")]
+    Plant(#[from] MujocoError),
 }
 
 /// The hidden true robot of a validated `sim` section ([`Settings::sim`]): the `truth` model
@@ -61,6 +66,35 @@ pub fn truth_from_config(sim: &SimConfig) -> Result<TrueRobot, RigError> {
 pub fn truth_for(settings: &Settings) -> Result<(TrueRobot, u64), RigError> {
     let sim = settings.sim.clone().unwrap_or_default();
     Ok((truth_from_config(&sim)?, sim.seed))
+}
+
+/// The physics a validated `sim` section asks for (`sim.plant`), for `truth`'s arm with its
+/// motors at rest at `q0` (rad): the in-process [`ModelPlant`] of the truth model, or the
+/// plant process (MuJoCo's by default) with the truth's tool point.
+pub fn plant_from_config(
+    sim: &SimConfig,
+    truth: &TrueRobot,
+    cfg: &ServoConfig,
+    q0: [f64; 6],
+) -> Result<Box<dyn Plant>, RigError> {
+    Ok(match sim.plant.kind {
+        PlantKind::Model => Box::new(ModelPlant::new(truth.model.clone(), cfg.tau_s, q0)),
+        PlantKind::Mujoco => {
+            let t = truth.model.tool().translation.vector;
+            let opts = MujocoOptions::from_config(&sim.plant, sim.seed, [t.x, t.y, t.z], q0);
+            Box::new(MujocoPlant::start(&opts)?)
+        }
+    })
+}
+
+/// The simulated servo controller validated daemon settings describe (their `sim` section:
+/// truth, seed, plant), its motors at [`HOME`], speaking the bus's framing.
+pub fn servo_for(settings: &Settings) -> Result<ServoSim, RigError> {
+    let sim = settings.sim.clone().unwrap_or_default();
+    let truth = truth_from_config(&sim)?;
+    let cfg = ServoConfig::speaking(settings.bus.timing().framing);
+    let plant = plant_from_config(&sim, &truth, &cfg, HOME)?;
+    Ok(ServoSim::with_plant(truth, cfg, plant, sim.seed))
 }
 
 /// The simulated controller running in real time on a virtual bus.
@@ -96,12 +130,22 @@ impl SimulatedArm {
         priority: Option<u8>,
         timing: crate::can::BusTiming,
     ) -> Result<Self, RigError> {
+        let cfg = ServoConfig::speaking(timing.framing);
+        Self::start_servo(ServoSim::new(truth, cfg, HOME, seed), priority, timing)
+    }
+
+    /// `servo` running in real time on a virtual bus of `timing`, its thread under
+    /// SCHED_FIFO at `priority` when given and permitted.
+    pub fn start_servo(
+        servo: ServoSim,
+        priority: Option<u8>,
+        timing: crate::can::BusTiming,
+    ) -> Result<Self, RigError> {
         let bus = VirtualBus::new(VirtualConfig {
             timing,
             ..VirtualConfig::default()
         });
-        let cfg = ServoConfig::speaking(timing.framing);
-        let servo = Arc::new(Mutex::new(ServoSim::new(truth, cfg, HOME, seed)));
+        let servo = Arc::new(Mutex::new(servo));
         let rt = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(1)
             .thread_name("pa10-sim")
@@ -131,10 +175,9 @@ impl SimulatedArm {
         })
     }
 
-    /// The arm validated daemon settings describe (their `sim` section).
+    /// The arm validated daemon settings describe (their `sim` section: truth, seed, plant).
     pub fn from_config(settings: &Settings) -> Result<Self, RigError> {
-        let (truth, seed) = truth_for(settings)?;
-        Self::start_on(truth, seed, None, settings.bus.timing())
+        Self::start_servo(servo_for(settings)?, None, settings.bus.timing())
     }
 
     /// A new endpoint on the arm's bus, for the host (the daemon).
@@ -254,14 +297,7 @@ impl Lockstep {
     /// The daemon validated settings describe with the simulated arm of their `sim` section
     /// at [`HOME`].
     pub fn from_config(settings: &Settings) -> Result<Self, RigError> {
-        let (truth, seed) = truth_for(settings)?;
-        let servo = ServoSim::new(
-            truth,
-            ServoConfig::speaking(settings.bus.timing().framing),
-            HOME,
-            seed,
-        );
-        Ok(Self::new(Core::from_config(settings), servo))
+        Ok(Self::new(Core::from_config(settings), servo_for(settings)?))
     }
 
     /// Simulated time, s.
