@@ -10,6 +10,7 @@ pub mod collect;
 pub mod dataset;
 pub mod evaluate;
 pub mod fit;
+pub mod identify;
 pub mod plan;
 mod prepare;
 pub mod report;

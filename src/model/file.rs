@@ -139,16 +139,25 @@ impl Friction {
 
     /// Checks the values; the offending field and why.
     pub fn validate(&self, key: &str) -> Result<(), (String, String)> {
-        let fields = [("coulomb", self.coulomb, "N·m"), ("viscous", self.viscous, "N·m·s/rad")];
+        let fields = [
+            ("coulomb", self.coulomb, "N·m"),
+            ("viscous", self.viscous, "N·m·s/rad"),
+        ];
         for (name, v, unit) in fields {
             if !(v.is_finite() && v >= 0.0) {
-                return Err((format!("{key}.{name}"), format!("must be finite and ≥ 0 {unit}, got {v}")));
+                return Err((
+                    format!("{key}.{name}"),
+                    format!("must be finite and ≥ 0 {unit}, got {v}"),
+                ));
             }
         }
         if let Some(s) = self.sigma
             && s.iter().any(|v| !(v.is_finite() && *v >= 0.0))
         {
-            return Err((format!("{key}.sigma"), format!("standard errors must be finite and ≥ 0, got {s:?}")));
+            return Err((
+                format!("{key}.sigma"),
+                format!("standard errors must be finite and ≥ 0, got {s:?}"),
+            ));
         }
         Ok(())
     }

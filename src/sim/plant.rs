@@ -86,11 +86,17 @@ impl PlantConfig {
         if let Some(f) = self.friction
             && !(f.is_finite() && (0.0..=10.0).contains(&f))
         {
-            return Err(("friction", format!("a scale 0…10 of the plant's dry friction, got {f}")));
+            return Err((
+                "friction",
+                format!("a scale 0…10 of the plant's dry friction, got {f}"),
+            ));
         }
         if let Some(c) = &self.command {
             if c.is_empty() || c[0].trim().is_empty() {
-                return Err(("command", "needs a program, e.g. [python3, plant.py]".into()));
+                return Err((
+                    "command",
+                    "needs a program, e.g. [python3, plant.py]".into(),
+                ));
             }
             if c.len() > MAX_COMMAND_ARGS {
                 return Err((
