@@ -347,6 +347,8 @@ pub struct SweepPlan {
     pub margin: f64,
     /// Lowest tool height allowed at every waypoint and halfway between, m (base frame).
     pub floor_z: f64,
+    /// Largest change of any joint from one waypoint to the next, rad.
+    pub max_step: f64,
     /// Seed of the draw.
     pub seed: u64,
 }
@@ -357,6 +359,7 @@ impl Default for SweepPlan {
             waypoints: 10,
             margin: 0.25,
             floor_z: 0.3,
+            max_step: 0.8,
             seed: 1,
         }
     }
@@ -382,6 +385,12 @@ pub fn plan_sweep(
             p.waypoints
         )));
     }
+    if !(p.max_step.is_finite() && p.max_step > 0.0) {
+        return Err(IdentifyError::Option(format!(
+            "max_step: a positive step in rad, got {}",
+            p.max_step
+        )));
+    }
     if !p.floor_z.is_finite() {
         return Err(IdentifyError::Option("floor: a finite height in m".into()));
     }
@@ -395,7 +404,13 @@ pub fn plan_sweep(
         for _ in 0..10_000 {
             let q: [f64; 6] = std::array::from_fn(|j| {
                 let span = lim.upper[j] - lim.lower[j];
-                rng.random_range(lim.lower[j] + p.margin * span..lim.upper[j] - p.margin * span)
+                let lo = (lim.lower[j] + p.margin * span).max(prev[j] - p.max_step);
+                let hi = (lim.upper[j] - p.margin * span).min(prev[j] + p.max_step);
+                if lo < hi {
+                    rng.random_range(lo..hi)
+                } else {
+                    prev[j]
+                }
             });
             let mid: [f64; 6] = std::array::from_fn(|j| 0.5 * (q[j] + prev[j]));
             if above(&q) && above(&mid) {
@@ -411,6 +426,37 @@ pub fn plan_sweep(
         })?);
     }
     Ok(out)
+}
+
+/// One sweep from `a` to `b` (link angles, rad) at constant speed: the fastest-moving joint at
+/// `speed` (rad/s; less on a segment too short to reach it), every joint arriving together,
+/// accelerating and braking at `accel` (rad/s², the fastest joint's). Timed points `(time from
+/// start s, positions rad, velocities rad/s)` for a trajectory that interpolates cubic Hermite
+/// segments: the ramps are then at constant acceleration and the middle segment exactly at
+/// constant speed. `None` when `a` is `b` or `speed` or `accel` is not positive.
+pub fn sweep_segment(
+    a: &[f64; 6],
+    b: &[f64; 6],
+    speed: f64,
+    accel: f64,
+) -> Option<Vec<(f64, [f64; 6], [f64; 6])>> {
+    let dist = (0..6).map(|j| (b[j] - a[j]).abs()).fold(0.0, f64::max);
+    if !(speed > 0.0 && accel > 0.0) || dist < 1e-9 {
+        return None;
+    }
+    // both ramps together cover speed²/accel; a short segment is driven slower
+    let speed = speed.min((dist * accel).sqrt());
+    let ramp_s = speed / accel;
+    let cruise = (dist - speed * ramp_s) / speed;
+    let total = cruise + ramp_s;
+    let v: [f64; 6] = std::array::from_fn(|j| (b[j] - a[j]) / total);
+    let p1: [f64; 6] = std::array::from_fn(|j| a[j] + 0.5 * v[j] * ramp_s);
+    let p2: [f64; 6] = std::array::from_fn(|j| b[j] - 0.5 * v[j] * ramp_s);
+    Some(vec![
+        (ramp_s, p1, v),
+        (ramp_s + cruise, p2, v),
+        (2.0 * ramp_s + cruise, *b, [0.0; 6]),
+    ])
 }
 
 /// The load the start model's statics would add for a payload (for reports): the torque of
@@ -524,7 +570,10 @@ mod tests {
             let b = t.static_torques(&q, &ExternalLoad::NONE);
             nominal = (0..6).map(|j| (a[j] - b[j]).abs()).fold(nominal, f64::max);
         }
-        assert!(nominal > 5.0 * worst, "nominal {nominal} N·m vs identified {worst}");
+        assert!(
+            nominal > 5.0 * worst,
+            "nominal {nominal} N·m vs identified {worst}"
+        );
         assert!(m.friction(1).is_some() && m.data().bodies.iter().all(|b| b.sigma.is_some()));
     }
 

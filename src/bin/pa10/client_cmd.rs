@@ -24,7 +24,7 @@ pub struct Conn {
     socket: PathBuf,
     /// Print the daemon's JSON answer as is.
     #[arg(long, global = true)]
-    json: bool,
+    pub(crate) json: bool,
 }
 
 /// `pa10 move …`

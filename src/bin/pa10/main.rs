@@ -9,6 +9,7 @@ mod client_cmd;
 mod collect_cmd;
 mod demo_cmd;
 mod discover_cmd;
+mod identify_cmd;
 mod iso_cmd;
 mod model_cmds;
 mod motion_cmd;
@@ -37,6 +38,10 @@ enum Command {
     Ik(model_cmds::IkArgs),
     /// Resolver-uncertainty accuracy bound: Monte Carlo and linearised, per plane.
     Accuracy(accuracy_cmd::AccuracyArgs),
+    /// Identify the gravity model (bodies) and every joint's friction from the arm's own
+    /// motion through the daemon: constant-speed sweeps both ways, currents fitted (no
+    /// instrument needed); run it before `pa10 calibrate`.
+    Identify(identify_cmd::IdentifyArgs),
     /// Calibrate the flexible geometric model on measurements (two-level LM, seed paper II-C).
     Calibrate(calib_cmd::CalibrateArgs),
     /// Design a calibration campaign: the poses to measure (I- or D-optimal) and the accuracy they predict.
@@ -138,6 +143,7 @@ fn main() -> ExitCode {
         Command::Model(c) => model_cmds::model(&c),
         Command::Urdf(a) => model_cmds::urdf(&a),
         Command::Accuracy(a) => accuracy_cmd::accuracy(&a),
+        Command::Identify(a) => identify_cmd::identify_cmd(&a),
         Command::Calibrate(a) => calib_cmd::calibrate(&a),
         Command::Plan(a) => plan_cmd::run(&a),
         Command::Iso9283(c) => iso_cmd::run(&c),
