@@ -732,3 +732,100 @@ fn discover_names_hidden_backlash_from_files_and_writes_a_model_the_daemon_loads
     assert!(String::from_utf8_lossy(&o.stderr).contains("known: none, cubic-j2"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn the_mujoco_config_checks_and_a_bad_plant_section_is_refused_by_key() {
+    let pa10d = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_pa10d"))
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim-mujoco.yaml");
+    let o = pa10d(&["--check-config", cfg]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let dir = std::env::temp_dir().join(format!("pa10d-plant-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("model-nominal.yaml"), pa10::model::NOMINAL_YAML).unwrap();
+    let text = std::fs::read_to_string(cfg).unwrap();
+    for (from, to, key) in [
+        ("friction: 1.0  ", "friction: 20.0  ", "sim.plant.friction"),
+        (
+            "friction_model: stick",
+            "friction_model: glue",
+            "friction_model",
+        ),
+        ("kind: mujoco", "kind: model", "sim.plant.kind"),
+        (
+            "command: [python3, ../tests/mujoco/plant.py]",
+            "command: []",
+            "sim.plant.command",
+        ),
+    ] {
+        assert!(text.contains(from), "{from}");
+        std::fs::write(dir.join("bad.yaml"), text.replace(from, to)).unwrap();
+        let o = pa10d(&["--check-config", dir.join("bad.yaml").to_str().unwrap()]);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{to}: {e}");
+        assert!(e.contains(key), "{to}: {e}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `pa10 identify` on the simulated arm (the in-process plant: no friction): the identified
+/// bodies give the hidden truth's gravity torques (its masses ±10 % and a 2.4 kg tooling the
+/// nominal model does not know) far better than the nominal model does.
+#[test]
+fn identify_recovers_the_hidden_gravity_through_the_daemon() {
+    use pa10::model::{ExternalLoad, Model};
+    let dir = std::env::temp_dir().join(format!("pa10-identify-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("identified.yaml");
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.yaml");
+    let o = pa10(&[
+        "identify",
+        "--simulate",
+        cfg,
+        "--waypoints",
+        "4",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = stdout_json(&o);
+    assert!(v["samples"].as_u64().unwrap() > 300, "{v}");
+    let m = Model::load(&out).unwrap();
+    let settings = pa10::daemon::config::Config::load(std::path::Path::new(cfg)).unwrap();
+    let (truth, _) = pa10::sim::rig::truth_for(&settings).unwrap();
+    let nominal = Model::nominal();
+    let (mut id_err, mut nom_err) = (0.0f64, 0.0f64);
+    for k in 0..40 {
+        let x = k as f64 * 0.37;
+        let q = [
+            x.sin(),
+            0.6 * (1.3 * x).cos(),
+            0.5 + 0.6 * x.sin(),
+            x.cos(),
+            1.0 * (0.7 * x).sin(),
+            0.0,
+        ];
+        let t = truth.model.static_torques(&q, &ExternalLoad::NONE);
+        let a = m.static_torques(&q, &ExternalLoad::NONE);
+        let b = nominal.static_torques(&q, &ExternalLoad::NONE);
+        for j in 0..6 {
+            id_err = id_err.max((a[j] - t[j]).abs());
+            nom_err = nom_err.max((b[j] - t[j]).abs());
+        }
+    }
+    assert!(
+        id_err < 1.0 && nom_err > 4.0 * id_err,
+        "identified {id_err} N·m, nominal {nom_err} N·m"
+    );
+    // no friction in this plant: none identified
+    for j in 0..6 {
+        let f = m.friction(j).unwrap();
+        assert!(f.coulomb < 0.5, "J{}: {f:?}", j + 1);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
