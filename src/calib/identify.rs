@@ -428,6 +428,9 @@ pub fn plan_sweep(
     Ok(out)
 }
 
+/// A timed trajectory point: time from the start (s), positions (rad), velocities (rad/s).
+pub type TimedPoint = (f64, [f64; 6], [f64; 6]);
+
 /// One sweep from `a` to `b` (link angles, rad) at constant speed: the fastest-moving joint at
 /// `speed` (rad/s; less on a segment too short to reach it), every joint arriving together,
 /// accelerating and braking at `accel` (rad/s², the fastest joint's). Timed points `(time from
@@ -439,7 +442,7 @@ pub fn sweep_segment(
     b: &[f64; 6],
     speed: f64,
     accel: f64,
-) -> Option<Vec<(f64, [f64; 6], [f64; 6])>> {
+) -> Option<Vec<TimedPoint>> {
     let dist = (0..6).map(|j| (b[j] - a[j]).abs()).fold(0.0, f64::max);
     if !(speed > 0.0 && accel > 0.0) || dist < 1e-9 {
         return None;
