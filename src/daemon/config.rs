@@ -199,21 +199,7 @@ fn default_model_dir() -> PathBuf {
     PathBuf::from(DEFAULT_MODEL_DIR)
 }
 
-/// The simulated robot behind the virtual backend.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
-#[serde(deny_unknown_fields)]
-pub struct SimConfig {
-    /// A hidden true robot (model YAML); drawn from `seed` when absent.
-    #[serde(default)]
-    pub truth: Option<PathBuf>,
-    /// Seed of the drawn truth and of the sensor noise.
-    #[serde(default)]
-    pub seed: u64,
-    /// The physics the simulated controller drives (`docs/plant-protocol.md`): the in-process
-    /// model plant by default, or MuJoCo's (any process speaking the plant protocol).
-    #[serde(default)]
-    pub plant: crate::sim::plant::PlantConfig,
-}
+pub use crate::sim::plant::SimConfig;
 
 /// Everything `pa10d` reads.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -40,6 +40,22 @@ pub enum FrictionModel {
     Stick,
 }
 
+/// The simulated robot behind the virtual backend.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub struct SimConfig {
+    /// A hidden true robot (model YAML); drawn from `seed` when absent.
+    #[serde(default)]
+    pub truth: Option<PathBuf>,
+    /// Seed of the drawn truth and of the sensor noise.
+    #[serde(default)]
+    pub seed: u64,
+    /// The physics the simulated controller drives (`docs/plant-protocol.md`): the in-process
+    /// model plant by default, or MuJoCo's (any process speaking the plant protocol).
+    #[serde(default)]
+    pub plant: PlantConfig,
+}
+
 /// Longest plant command accepted (program and arguments).
 pub const MAX_COMMAND_ARGS: usize = 64;
 
