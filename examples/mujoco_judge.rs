@@ -29,7 +29,7 @@ use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
-use pa10::sim::plant::FrictionModel;
+use pa10::sim::plant::{FrictionModel, MAX_FRICTION_SCALE, PlantConfig, PlantKind};
 use pa10::sim::rig::{HOME, Lockstep, truth_for};
 use pa10::sim::servo::{ServoConfig, ServoSim};
 use rand::SeedableRng;
@@ -82,8 +82,8 @@ fn opts() -> Result<Opts> {
                     .parse()
                     .context("--friction: a number")?;
                 ensure!(
-                    (0.0..=10.0).contains(&o.friction),
-                    "--friction: a scale 0…10 of the plant's friction, got {}",
+                    (0.0..=MAX_FRICTION_SCALE).contains(&o.friction),
+                    "--friction: a scale 0…{MAX_FRICTION_SCALE} of the plant's friction, got {}",
                     o.friction
                 );
             }
@@ -271,15 +271,21 @@ fn settings(dir: &Path, o: &Opts) -> Result<Settings> {
 /// The daemon's core with the simulated controller driving the MuJoCo plant, ready.
 fn rig(settings: &Settings, o: &Opts) -> Result<Lockstep> {
     let (truth, seed) = truth_for(settings)?;
-    let mut mo = MujocoOptions::new(o.seed, HOME);
-    mo.friction = o.friction;
-    mo.friction_model = o.friction_model;
+    let mut plant = PlantConfig {
+        kind: PlantKind::Mujoco,
+        friction: Some(o.friction),
+        friction_model: o.friction_model,
+        ..PlantConfig::default()
+    };
     if let Some(script) = std::env::var_os("PA10_PLANT") {
-        mo.command[1] = script.to_string_lossy().into_owned();
+        plant.command = Some(vec![
+            "python3".into(),
+            script.to_string_lossy().into_owned(),
+        ]);
     }
-    let mut mo = mo.honouring_pa10_python();
     let tool = CampaignSpec::default().tool.translation.vector;
-    mo.tool = [tool.x, tool.y, tool.z];
+    let mo = MujocoOptions::from_config(&plant, o.seed, [tool.x, tool.y, tool.z], HOME)
+        .honouring_pa10_python();
     let plant = MujocoPlant::start(&mo).context(
         "starting the MuJoCo plant (pip install mujoco; PA10_PYTHON names the interpreter)",
     )?;

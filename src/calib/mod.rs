@@ -2,7 +2,8 @@
 //! identification of the flexible geometric model — `dataset` (the CSV and sidecar),
 //! `base` (the inner level), `fit` (the outer level and its stages), `weights` (how rows are
 //! weighed, from the measured noise), `evaluate` (errors per load, floors), `report`,
-//! `collect` (gathering through the daemon), `plan` (which configurations to measure, and the
+//! `collect` (gathering through the daemon), `identify` (gravity and friction from the arm's
+//! own motion), `plan` (which configurations to measure, and the
 //! accuracy they will give).
 
 pub mod base;

@@ -22,7 +22,7 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
-use super::plant::{Drive, FrictionModel, Plant, PlantConfig};
+use super::plant::{Drive, FrictionModel, MAX_FRICTION_SCALE, Plant, PlantConfig};
 use crate::model::{Frame as Pose, frame_from_pose};
 
 /// Longest answer line accepted from the plant process, bytes.
@@ -147,15 +147,14 @@ pub struct MujocoPlant {
     /// The speed loop's reference, rad/s.
     reference: [f64; 6],
     failure: Option<String>,
-    line: String,
 }
 
 impl MujocoPlant {
     /// Starts the plant process and puts the arm at rest at `opts.q0`.
     pub fn start(opts: &MujocoOptions) -> Result<Self, MujocoError> {
-        if !(0.0..=10.0).contains(&opts.friction) {
+        if !(0.0..=MAX_FRICTION_SCALE).contains(&opts.friction) {
             return Err(MujocoError::Option(format!(
-                "friction {} (a scale 0…10)",
+                "friction {} (a scale 0…{MAX_FRICTION_SCALE})",
                 opts.friction
             )));
         }
@@ -192,7 +191,6 @@ impl MujocoPlant {
             pending_s: 0.0,
             reference: [0.0; 6],
             failure: None,
-            line: String::with_capacity(1024),
         };
         let reset = serde_json::json!({
             "op": "reset", "q": opts.q0, "tool": opts.tool, "seed": opts.seed,
@@ -218,7 +216,7 @@ impl MujocoPlant {
     fn request(&mut self, req: &serde_json::Value) -> Result<State, MujocoError> {
         writeln!(self.input, "{req}")?;
         self.input.flush()?;
-        self.line = match self.answers.recv_timeout(ANSWER_TIMEOUT) {
+        let line = match self.answers.recv_timeout(ANSWER_TIMEOUT) {
             Ok(Ok(line)) => line,
             Ok(Err(why)) => return Err(MujocoError::Protocol(why)),
             Err(RecvTimeoutError::Timeout) => {
@@ -231,14 +229,14 @@ impl MujocoPlant {
                 return Err(MujocoError::Protocol("nothing: the process ended".into()));
             }
         };
-        let s: State = match serde_json::from_str(&self.line) {
+        let s: State = match serde_json::from_str(&line) {
             Ok(s) => s,
             Err(e) => {
-                let err: Result<serde_json::Value, _> = serde_json::from_str(&self.line);
+                let err: Result<serde_json::Value, _> = serde_json::from_str(&line);
                 if let Some(msg) = err.ok().and_then(|v| v["error"].as_str().map(String::from)) {
                     return Err(MujocoError::Refused(msg));
                 }
-                return Err(MujocoError::Protocol(format!("{e}: {}", self.line.trim())));
+                return Err(MujocoError::Protocol(format!("{e}: {}", line.trim())));
             }
         };
         match s.error {

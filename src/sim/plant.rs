@@ -56,6 +56,9 @@ pub struct SimConfig {
     pub plant: PlantConfig,
 }
 
+/// Largest scale of a plant's dry friction (`tests/mujoco/plant.py` refuses more too).
+pub const MAX_FRICTION_SCALE: f64 = 10.0;
+
 /// Longest plant command accepted (program and arguments).
 pub const MAX_COMMAND_ARGS: usize = 64;
 
@@ -100,11 +103,11 @@ impl PlantConfig {
     /// Checks every field: the offending key (below `sim.plant`) and why.
     pub fn validate(&self) -> Result<(), (&'static str, String)> {
         if let Some(f) = self.friction
-            && !(f.is_finite() && (0.0..=10.0).contains(&f))
+            && !(f.is_finite() && (0.0..=MAX_FRICTION_SCALE).contains(&f))
         {
             return Err((
                 "friction",
-                format!("a scale 0…10 of the plant's dry friction, got {f}"),
+                format!("a scale 0…{MAX_FRICTION_SCALE} of the plant's dry friction, got {f}"),
             ));
         }
         if let Some(c) = &self.command {

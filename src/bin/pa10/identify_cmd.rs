@@ -66,49 +66,46 @@ pub fn gather(api: &mut dyn Api, tour: &[[f64; 6]], speeds: &[f64]) -> Result<Ve
     let back = (0..n)
         .rev()
         .map(|i| (tour[i + 1], tour[i], speeds[(i + 1) % speeds.len()]));
-    {
-        for (a, b, speed) in out.chain(back) {
-            let Some(seg) = identify::sweep_segment(&a, &b, speed, ACCEL) else {
-                continue;
-            };
-            let points = seg
-                .into_iter()
-                .map(|(t, positions, velocities)| TrajectoryPoint {
-                    positions,
-                    velocities: Some(velocities),
-                    accelerations: None,
-                    time_from_start: t,
-                })
-                .collect();
-            checked(
-                api,
-                ApiRequest::FollowTrajectory {
-                    points,
-                    path_tolerance: None,
-                    goal_tolerance: None,
-                    goal_time_tolerance: None,
-                },
-            )?;
-            let start = api.clock_s();
-            loop {
-                api.pause(Duration::from_secs_f64(POLL_S));
-                let s = status_of(api)?;
-                match s.state {
-                    State::Fault => bail!(
-                        "the sweep ended in a fault: {}",
-                        s.fault.unwrap_or_default()
-                    ),
-                    State::Holding if api.clock_s() - start > 0.1 => break,
-                    _ if api.clock_s() - start > 600.0 => bail!("a sweep took over 600 s"),
-                    _ => {}
-                }
-                polls.push(Poll {
-                    t: s.time_s,
-                    setpoint: s.setpoint,
-                    q_motor: s.q_motor,
-                    current: s.current,
-                });
+    for (a, b, speed) in out.chain(back) {
+        let Some(seg) = identify::sweep_segment(&a, &b, speed, ACCEL) else {
+            continue;
+        };
+        let points = seg
+            .into_iter()
+            .map(|(t, positions, velocities)| TrajectoryPoint {
+                positions,
+                velocities: Some(velocities),
+                accelerations: None,
+                time_from_start: t,
+            })
+            .collect();
+        checked(
+            api,
+            ApiRequest::FollowTrajectory {
+                points,
+                path_tolerance: None,
+                goal_tolerance: None,
+                goal_time_tolerance: None,
+            },
+        )?;
+        let start = api.clock_s();
+        loop {
+            api.pause(Duration::from_secs_f64(POLL_S));
+            let s = status_of(api)?;
+            match s.state {
+                State::Fault => bail!(
+                    "the sweep ended in a fault: {}",
+                    s.fault.unwrap_or_default()
+                ),
+                State::Holding if api.clock_s() - start > 0.1 => break,
+                _ if api.clock_s() - start > 600.0 => bail!("a sweep took over 600 s"),
+                _ => {}
             }
+            polls.push(Poll {
+                t: s.time_s,
+                setpoint: s.setpoint,
+                current: s.current,
+            });
         }
     }
     Ok(polls)
