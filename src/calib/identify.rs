@@ -54,16 +54,13 @@ pub struct Sample {
     pub tau: [f64; 6],
 }
 
-/// One poll of the daemon's status: its time (s), link setpoint (rad), resolver angles (rad)
-/// and currents (A).
+/// One poll of the daemon's status: its time (s), link setpoint (rad) and currents (A).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Poll {
     /// The daemon's clock, s.
     pub t: f64,
     /// The link setpoint, rad.
     pub setpoint: [f64; 6],
-    /// Resolver (motor) angles, rad.
-    pub q_motor: [f64; 6],
     /// Motor currents, A.
     pub current: [f64; 6],
 }
@@ -154,8 +151,8 @@ pub fn gravity_regressor(model: &Model, q: &[f64; 6]) -> [[f64; NG]; 6] {
     y
 }
 
-/// The start model's bodies as the parameters of [`FRAMES`] (bodies of other frames are
-/// folded into none: they are reported as left out).
+/// The start model's bodies of [`FRAMES`] as their parameters (bodies of other frames are not
+/// identified: [`identify`] takes their torques as known and [`Identified::apply`] keeps them).
 fn prior_params(model: &Model) -> [f64; NG] {
     let mut phi = [0.0; NG];
     for b in &model.data().bodies {
@@ -221,22 +218,32 @@ pub fn identify(model: &Model, samples: &[Sample]) -> Result<Identified, Identif
         .enumerate()
         .flat_map(|(i, s)| (0..6).filter(move |&j| s.usable[j]).map(move |j| (i, j)))
         .collect();
-    let regs: Vec<[[f64; NG]; 6]> = samples
+    let prior = prior_params(model);
+    // per sample: the regressor, and the torques of the bodies outside FRAMES (known: the
+    // model's statics less what its FRAMES bodies give)
+    let regs: Vec<([[f64; NG]; 6], [f64; 6])> = samples
         .iter()
-        .map(|s| gravity_regressor(model, &s.q))
+        .map(|s| {
+            let y = gravity_regressor(model, &s.q);
+            let all = model.static_torques(&s.q, &ExternalLoad::NONE);
+            let known =
+                std::array::from_fn(|j| all[j] - (0..NG).map(|p| y[j][p] * prior[p]).sum::<f64>());
+            (y, known)
+        })
         .collect();
     let mut a = DMatrix::<f64>::zeros(rows.len(), NP);
     let mut b = DVector::<f64>::zeros(rows.len());
+    let mut counts = [0usize; 6];
     for (r, &(i, j)) in rows.iter().enumerate() {
-        let s = &samples[i];
+        let (s, (y, known)) = (&samples[i], &regs[i]);
         for p in 0..NG {
-            a[(r, p)] = regs[i][j][p];
+            a[(r, p)] = y[j][p];
         }
         a[(r, NG + 2 * j)] = s.qd[j].signum();
         a[(r, NG + 2 * j + 1)] = s.qd[j];
-        b[r] = s.tau[j];
+        b[r] = s.tau[j] - known[j];
+        counts[j] += 1;
     }
-    let prior = prior_params(model);
     let mut sigma_j = [1.0; 6];
     let mut x = DVector::<f64>::zeros(NP);
     let mut cov = DMatrix::<f64>::zeros(NP, NP);
@@ -264,16 +271,10 @@ pub fn identify(model: &Model, samples: &[Sample]) -> Result<Identified, Identif
         cov = chol.inverse();
         let res = &b - &a * &x;
         let mut ss = [0.0; 6];
-        let mut cnt = [0usize; 6];
         for (r, &(_, j)) in rows.iter().enumerate() {
             ss[j] += res[r] * res[r];
-            cnt[j] += 1;
         }
-        sigma_j = std::array::from_fn(|j| (ss[j] / cnt[j].max(1) as f64).sqrt().max(1e-6));
-    }
-    let mut counts = [0usize; 6];
-    for &(_, j) in &rows {
-        counts[j] += 1;
+        sigma_j = std::array::from_fn(|j| (ss[j] / counts[j].max(1) as f64).sqrt().max(1e-6));
     }
     Ok(Identified {
         params: std::array::from_fn(|p| x[p]),
@@ -292,12 +293,6 @@ pub fn identify(model: &Model, samples: &[Sample]) -> Result<Identified, Identif
 }
 
 impl Identified {
-    /// The gravity torques the identified parameters give at `q` (rad), N·m.
-    pub fn gravity_torques(&self, model: &Model, q: &[f64; 6]) -> [f64; 6] {
-        let y = gravity_regressor(model, q);
-        std::array::from_fn(|j| (0..NG).map(|p| y[j][p] * self.params[p]).sum())
-    }
-
     /// `model` with the identified bodies (one per frame of [`FRAMES`] whose mass is positive,
     /// named as the model's body of that frame or `frame N`; bodies of other frames kept) and
     /// every joint's friction.
@@ -462,14 +457,6 @@ pub fn sweep_segment(
     ])
 }
 
-/// The load the start model's statics would add for a payload (for reports): the torque of
-/// `newtons` hung at the tool at `q`.
-pub fn payload_torques(model: &Model, q: &[f64; 6], newtons: f64) -> [f64; 6] {
-    let none = model.static_torques(q, &ExternalLoad::NONE);
-    let with = model.static_torques(q, &ExternalLoad::hung(newtons, &model.gravity()));
-    std::array::from_fn(|j| with[j] - none[j])
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -532,7 +519,6 @@ mod tests {
                     polls.push(Poll {
                         t: time,
                         setpoint: q,
-                        q_motor: q,
                         current: tau,
                     });
                     time += dt;
@@ -557,22 +543,20 @@ mod tests {
         }
         // the gravity torques over fresh configurations match the truth's
         let m = id.apply(&Model::nominal()).unwrap();
-        let mut worst = 0.0f64;
-        for _ in 0..50 {
-            let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-1.2..1.2));
-            let a = m.static_torques(&q, &ExternalLoad::NONE);
-            let b = t.static_torques(&q, &ExternalLoad::NONE);
-            worst = (0..6).map(|j| (a[j] - b[j]).abs()).fold(worst, f64::max);
-        }
+        let mut off_by = |model: &Model| {
+            let mut worst = 0.0f64;
+            for _ in 0..50 {
+                let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-1.2..1.2));
+                let a = model.static_torques(&q, &ExternalLoad::NONE);
+                let b = t.static_torques(&q, &ExternalLoad::NONE);
+                worst = (0..6).map(|j| (a[j] - b[j]).abs()).fold(worst, f64::max);
+            }
+            worst
+        };
+        let worst = off_by(&m);
         assert!(worst < 0.3, "gravity torques off by {worst} N·m");
-        // the nominal model is off by far more at the same configurations
-        let mut nominal = 0.0f64;
-        for _ in 0..50 {
-            let q: [f64; 6] = std::array::from_fn(|_| rng.random_range(-1.2..1.2));
-            let a = Model::nominal().static_torques(&q, &ExternalLoad::NONE);
-            let b = t.static_torques(&q, &ExternalLoad::NONE);
-            nominal = (0..6).map(|j| (a[j] - b[j]).abs()).fold(nominal, f64::max);
-        }
+        // the nominal model is off by far more at other configurations
+        let nominal = off_by(&Model::nominal());
         assert!(
             nominal > 5.0 * worst,
             "nominal {nominal} N·m vs identified {worst}"
