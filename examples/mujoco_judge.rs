@@ -6,6 +6,10 @@
 //! 1. A calibration campaign gathered through the daemon (27 poses × 0/22/44 N; the instrument
 //!    is MuJoCo's tool pose seen through the drawn instrument frame with the paper's noise),
 //!    calibrated (the 30-parameter model and the nominal model placed).
+//!    With `--identify` an identification tour comes first (`pa10 identify`'s sweeps through
+//!    the daemon): the gravity model and friction it finds are the model every later step
+//!    starts from (the fit's model torques, the daemon's), judged against MuJoCo's spring
+//!    torques at rest at the novel poses.
 //! 2. Novel poses at 0/45/90 N with each model loaded into the daemon, judged by MuJoCo's tool
 //!    pose, beside the Monte Carlo resolver floor at those configurations.
 //! 3. Tracking of `docs/motion.md`'s six-point trajectory at 0 and 90 N: MuJoCo's link angles
@@ -13,7 +17,7 @@
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended]
-//! [--current-filter-hz HZ]` — needs `pip install mujoco` (the Python interpreter
+//! [--current-filter-hz HZ] [--identify]` — needs `pip install mujoco` (the Python interpreter
 //! `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another plant script speaking
 //! docs/plant-protocol.md). docs/judge.md quotes it.
 
@@ -23,6 +27,8 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use pa10::calib::dataset::{Dataset, Effort, Meta, Row};
 use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
+use pa10::calib::identify::{self, SweepPlan};
+use pa10::daemon::api::sweep;
 use pa10::daemon::config::{Config, Settings};
 use pa10::daemon::core::Core;
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
@@ -56,6 +62,8 @@ struct Opts {
     torque_source: String,
     /// The daemon's `current_filter_hz` (for `torque_source: measured`), Hz.
     filter_hz: Option<f64>,
+    /// Identify the gravity model and friction through the daemon first.
+    identify: bool,
 }
 
 fn opts() -> Result<Opts> {
@@ -68,6 +76,7 @@ fn opts() -> Result<Opts> {
         friction_model: FrictionModel::Creep,
         torque_source: "blended".into(),
         filter_hz: None,
+        identify: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -76,6 +85,7 @@ fn opts() -> Result<Opts> {
             "--json" => o.json = true,
             "--quick" => o.quick = true,
             "--check" => o.check = true,
+            "--identify" => o.identify = true,
             "--seed" => o.seed = value("--seed")?.parse().context("--seed: an integer")?,
             "--friction" => {
                 o.friction = value("--friction")?
@@ -110,7 +120,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended, --current-filter-hz HZ)"
+                "unknown argument {other} (--json, --quick, --check, --identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended, --current-filter-hz HZ)"
             ),
         }
     }
@@ -165,11 +175,28 @@ struct Outcome {
     /// Why the dynamic runs ended early (a fault the daemon did not recover from), if so
     aborted: Option<String>,
     torque_source: String,
+    identification: Option<Identification>,
     seed: u64,
     calibration_rows: usize,
     validation_poses: usize,
     simulated_s: f64,
     elapsed_s: f64,
+}
+
+/// What `--identify` found and how close its gravity model came to MuJoCo's.
+#[derive(Debug, Serialize)]
+struct Identification {
+    /// Constant-speed samples the fit used.
+    samples: usize,
+    /// Simulated time the tour took, s.
+    tour_s: f64,
+    /// Identified Coulomb friction per joint, N·m.
+    coulomb_nm: [f64; 6],
+    /// Identified viscous friction per joint, N·m·s/rad.
+    viscous_nms: [f64; 6],
+    /// Per joint, RMS over the novel poses at rest at 0 N of the model's gravity torque −
+    /// MuJoCo's spring torque, N·m: the nominal masses, the identified ones.
+    gravity_rms_nm: [[f64; 6]; 2],
 }
 
 fn main() -> Result<()> {
@@ -422,6 +449,13 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     let nominal = Model::nominal().with_tool(&tool)?;
     let mut ls = rig(&settings, o)?;
     let truth = ls.servo.truth().clone();
+    // 0. With --identify the identified gravity model and friction are the starting model.
+    let (base, mut identification) = if o.identify {
+        let (m, i) = identify_through(&mut ls, &nominal, kt, o).context("identification")?;
+        (m, Some(i))
+    } else {
+        (nominal.clone(), None)
+    };
     let mut rng = Pcg64::seed_from_u64(o.seed ^ 0x3d0c);
     let repeats = 2;
 
@@ -484,12 +518,12 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     };
     // With the daemon's torques from the model, the fit's too (the currents carry friction).
     let data = if o.torque_source == "model" {
-        data.with_model_torques(&nominal)
+        data.with_model_torques(&base)
     } else {
         data
     };
-    let full = calibrate(&nominal, &data, None, &copts, &|_| {})?.model;
-    let placed = fit_base_only(&nominal, &data, None, &copts)?;
+    let full = calibrate(&base, &data, None, &copts, &|_| {})?.model;
+    let placed = fit_base_only(&base, &data, None, &copts)?;
 
     // 3. Novel poses (instrument frame) at 0/45/90 N, each model loaded into the daemon.
     let n_val = if o.quick { 2 } else { 6 };
@@ -517,6 +551,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     let mut move_settle_s = vec![Vec::new(); named.len()];
     let mut faults = Vec::new();
     let mut val_q = Vec::new();
+    // (link angles rad, MuJoCo's spring torques N·m) at rest at 0 N
+    let mut at_rest = Vec::new();
     for (k, target) in targets.iter().enumerate() {
         for (mi, (name, m)) in named.iter().enumerate() {
             let path = paths[mi].display().to_string();
@@ -529,6 +565,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                     if mi == 1 {
                         val_q.push(v.setpoint);
                     }
+                    at_rest.extend(v.rest0);
                     for l in 0..VAL_LOADS.len() {
                         errs[mi][l].push(v.error_mm[l]);
                         rest[mi][l].push(v.rest_mrad[l]);
@@ -563,6 +600,19 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             settle_mean_s: mean(&settle_s[1][l]),
         })
         .collect();
+    if let Some(i) = identification.as_mut() {
+        let g = nominal.gravity();
+        let none = pa10::model::ExternalLoad::hung(0.0, &g);
+        for (k, m) in [&nominal, &base].into_iter().enumerate() {
+            for j in 0..6 {
+                let ss: f64 = at_rest
+                    .iter()
+                    .map(|(q, tau)| (m.static_torques(q, &none)[j] - tau[j]).powi(2))
+                    .sum();
+                i.gravity_rms_nm[k][j] = (ss / at_rest.len().max(1) as f64).sqrt();
+            }
+        }
+    }
     let floor_mm =
         pa10::accuracy::floor_at(&full, &val_q, truth.noise.resolver_rad, 20_000, o.seed) * 1e3;
 
@@ -599,12 +649,42 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         validation_faults: faults,
         aborted,
         torque_source: o.torque_source.clone(),
+        identification,
         seed: o.seed,
         calibration_rows: data.rows.len(),
         validation_poses: targets.len(),
         simulated_s: ls.now(),
         elapsed_s: t0.elapsed().as_secs_f64(),
     })
+}
+
+/// `pa10 identify`'s tour through the daemon (6 waypoints quick, 10 full): the nominal model
+/// with the identified bodies and friction.
+fn identify_through(
+    ls: &mut Lockstep,
+    nominal: &Model,
+    kt: [f64; 6],
+    o: &Opts,
+) -> Result<(Model, Identification)> {
+    let t = ls.now();
+    let plan = SweepPlan {
+        waypoints: if o.quick { 6 } else { 10 },
+        seed: o.seed,
+        ..SweepPlan::default()
+    };
+    let tour = identify::plan_sweep(nominal, &status(ls)?.setpoint, &plan)?;
+    let polls = sweep::gather(ls, &tour, &sweep::DEFAULT_SPEEDS)?;
+    let samples = identify::samples(&polls, &kt, sweep::MIN_SAMPLE_SPEED);
+    let id = identify::identify(nominal, &samples)?;
+    let model = id.apply(nominal)?;
+    let i = Identification {
+        samples: samples.len(),
+        tour_s: ls.now() - t,
+        coulomb_nm: id.friction.map(|f| f.coulomb),
+        viscous_nms: id.friction.map(|f| f.viscous),
+        gravity_rms_nm: [[0.0; 6]; 2],
+    };
+    Ok((model, i))
 }
 
 type Run = (f64, String, f64, f64, String);
@@ -712,6 +792,8 @@ struct PoseResult {
     error_mm: [f64; 3],
     rest_mrad: [f64; 3],
     settle_s: [f64; 3],
+    /// At rest at 0 N: MuJoCo's link angles, rad, and spring torques, N·m (when it says them).
+    rest0: Option<([f64; 6], [f64; 6])>,
 }
 
 /// Moves `model`'s estimate of `target` (instrument frame) and measures it at 0/45/90 N (in
@@ -737,6 +819,7 @@ fn validate_pose(
         error_mm: [0.0; 3],
         rest_mrad: [0.0; 3],
         settle_s: [0.0; 3],
+        rest0: None,
     };
     let mut order = vec![0, 1, 2];
     if reversed {
@@ -747,6 +830,12 @@ fn validate_pose(
         let got = truth_base.inverse() * ls.servo.true_tool_pose();
         r.error_mm[l] = pose_error(target, &got).fixed_rows::<3>(0).norm() * 1e3;
         r.rest_mrad[l] = rest_mrad(ls)?;
+        if l == 0 {
+            let plant = ls.servo.plant();
+            r.rest0 = plant
+                .spring_torques()
+                .map(|tau| (plant.link_state().0, tau));
+        }
     }
     Ok(r)
 }
@@ -824,6 +913,21 @@ fn print(o: &Outcome) {
         println!(
             "J5 after a 0.2 rad move at 90 N (calibrated): {:.1} Hz, amplitude {:.3} mrad in the first 0.5 s, {:.3} mrad in the last 0.5 s of 4 s ({})",
             r.freq_hz, r.first_mrad, r.last_mrad, r.ended
+        );
+    }
+    if let Some(i) = &o.identification {
+        let row = |v: &[f64; 6]| v.map(|x| format!("{x:.2}")).join(" / ");
+        println!(
+            "\nIdentified through the daemon ({} samples, {:.0} s tour): Coulomb {} N·m, viscous {} N·m·s/rad",
+            i.samples,
+            i.tour_s,
+            row(&i.coulomb_nm),
+            row(&i.viscous_nms)
+        );
+        println!(
+            "Gravity torque − MuJoCo's spring torque at rest, RMS over the novel poses per joint: nominal masses {} N·m, identified {} N·m",
+            row(&i.gravity_rms_nm[0]),
+            row(&i.gravity_rms_nm[1])
         );
     }
     for f in &o.validation_faults {

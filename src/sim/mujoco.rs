@@ -126,6 +126,8 @@ struct State {
     motor_speed: [f64; 6],
     link: [f64; 6],
     motor_torque: [f64; 6],
+    #[serde(default)]
+    spring_torque: Option<[f64; 6]>,
     tool: [f64; 7],
     #[serde(default)]
     dt: Option<f64>,
@@ -308,6 +310,10 @@ impl Plant for MujocoPlant {
 
     fn link_state(&self) -> ([f64; 6], [f64; 6]) {
         (self.state.link, self.state.motor_torque)
+    }
+
+    fn spring_torques(&self) -> Option<[f64; 6]> {
+        self.state.spring_torque
     }
 
     fn tool_pose(&self) -> Pose {

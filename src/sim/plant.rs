@@ -171,6 +171,12 @@ pub trait Plant: Send + std::fmt::Debug {
     fn tool_pose(&self) -> Pose;
     /// Hangs `newtons` at the tool (the weight rack).
     fn set_load(&mut self, newtons: f64);
+    /// The torques the joint springs pass to the links, N·m (link side; at rest the links'
+    /// gravity and load torques: the judges' truth for an identified gravity model), when the
+    /// plant reports them.
+    fn spring_torques(&self) -> Option<[f64; 6]> {
+        None
+    }
     /// Why the plant stopped computing (an external process that died), if it did.
     fn failure(&self) -> Option<&str> {
         None
@@ -253,6 +259,10 @@ impl Plant for ModelPlant {
 
     fn tool_pose(&self) -> Pose {
         self.model.fk(&self.link_state().0)
+    }
+
+    fn spring_torques(&self) -> Option<[f64; 6]> {
+        Some(self.link_state().1)
     }
 
     fn set_load(&mut self, newtons: f64) {

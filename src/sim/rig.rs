@@ -399,3 +399,17 @@ impl Lockstep {
         serde_json::to_value(reply).unwrap_or_default()
     }
 }
+
+/// The rig as a client sees the daemon: requests answered by the core, pauses run the
+/// simulation (`pa10 identify --simulate`, the judges).
+impl crate::daemon::api::sweep::Session for Lockstep {
+    fn send(&mut self, req: ApiRequest) -> Result<Reply, String> {
+        Ok(self.call(req))
+    }
+    fn pause(&mut self, seconds: f64) {
+        self.run_for(seconds);
+    }
+    fn clock_s(&self) -> f64 {
+        self.now()
+    }
+}

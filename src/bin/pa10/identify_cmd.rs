@@ -7,11 +7,11 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use pa10::calib::identify::{self, Poll, SweepPlan};
-use pa10::daemon::plan::TrajectoryPoint;
-use pa10::daemon::wire::{ApiRequest, State};
+use pa10::calib::identify::{self, SweepPlan};
+use pa10::daemon::api::sweep::{self, Session};
+use pa10::daemon::wire::{ApiRequest, Reply};
 
-use crate::client_cmd::{Api, Conn, Simulated, Socket, checked, status_of};
+use crate::client_cmd::{Api, Conn, Simulated, Socket, status_of};
 use crate::model_cmds::ModelArg;
 
 /// Arguments of `pa10 identify`.
@@ -49,78 +49,25 @@ pub struct IdentifyArgs {
     simulate: Option<PathBuf>,
 }
 
-/// Status poll interval, s.
-const POLL_S: f64 = 0.02;
-/// Acceleration of the fastest joint at the start and end of every sweep, rad/s² (within the
-/// daemon's default limits of every joint).
-const ACCEL: f64 = 0.4;
-/// Slowest joint speed a sample counts for, rad/s.
-const MIN_SPEED: f64 = 0.02;
+/// A `pa10` client connection as a sweep's session.
+struct AsSession<'a>(&'a mut dyn Api);
 
-/// Drives the tour out and back (every segment both ways, at alternating speeds: the way
-/// out of segment i at `speeds[i]`, back at `speeds[i + 1]`, cyclically) and polls the status.
-pub fn gather(api: &mut dyn Api, tour: &[[f64; 6]], speeds: &[f64]) -> Result<Vec<Poll>> {
-    let mut polls = Vec::new();
-    let n = tour.len().saturating_sub(1);
-    let out = (0..n).map(|i| (tour[i], tour[i + 1], speeds[i % speeds.len()]));
-    let back = (0..n)
-        .rev()
-        .map(|i| (tour[i + 1], tour[i], speeds[(i + 1) % speeds.len()]));
-    for (a, b, speed) in out.chain(back) {
-        let Some(seg) = identify::sweep_segment(&a, &b, speed, ACCEL) else {
-            continue;
-        };
-        let points = seg
-            .into_iter()
-            .map(|(t, positions, velocities)| TrajectoryPoint {
-                positions,
-                velocities: Some(velocities),
-                accelerations: None,
-                time_from_start: t,
-            })
-            .collect();
-        checked(
-            api,
-            ApiRequest::FollowTrajectory {
-                points,
-                path_tolerance: None,
-                goal_tolerance: None,
-                goal_time_tolerance: None,
-            },
-        )?;
-        let start = api.clock_s();
-        loop {
-            api.pause(Duration::from_secs_f64(POLL_S));
-            let s = status_of(api)?;
-            match s.state {
-                State::Fault => bail!(
-                    "the sweep ended in a fault: {}",
-                    s.fault.unwrap_or_default()
-                ),
-                State::Holding if api.clock_s() - start > 0.1 => break,
-                _ if api.clock_s() - start > 600.0 => bail!("a sweep took over 600 s"),
-                _ => {}
-            }
-            polls.push(Poll {
-                t: s.time_s,
-                setpoint: s.setpoint,
-                current: s.current,
-            });
-        }
+impl Session for AsSession<'_> {
+    fn send(&mut self, req: ApiRequest) -> std::result::Result<Reply, String> {
+        self.0.send(req).map_err(|e| format!("{e:#}"))
     }
-    Ok(polls)
+    fn pause(&mut self, seconds: f64) {
+        self.0.pause(Duration::from_secs_f64(seconds));
+    }
+    fn clock_s(&self) -> f64 {
+        self.0.clock_s()
+    }
 }
 
 /// `pa10 identify`.
 pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
     let model = a.model.load()?;
-    anyhow::ensure!(
-        !a.speeds.is_empty()
-            && a.speeds
-                .iter()
-                .all(|s| s.is_finite() && *s > 0.0 && *s <= 1.0),
-        "--speeds: one or more speeds in (0, 1] rad/s"
-    );
+    sweep::check_speeds(&a.speeds).context("--speeds")?;
     let plan = SweepPlan {
         waypoints: a.waypoints,
         margin: a.margin,
@@ -148,8 +95,8 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
     };
     let start = status_of(api.as_mut())?.setpoint;
     let tour = identify::plan_sweep(&model, &start, &plan)?;
-    let polls = gather(api.as_mut(), &tour, &a.speeds)?;
-    let samples = identify::samples(&polls, &kt, MIN_SPEED);
+    let polls = sweep::gather(&mut AsSession(api.as_mut()), &tour, &a.speeds)?;
+    let samples = identify::samples(&polls, &kt, sweep::MIN_SAMPLE_SPEED);
     let id = identify::identify(&model, &samples)?;
     let out = id.apply(&model)?;
     out.save(&a.out)

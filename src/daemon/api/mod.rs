@@ -27,6 +27,7 @@ pub use serve::{
 
 mod client;
 mod serve;
+pub mod sweep;
 
 use crate::text::truncate;
 

@@ -1,0 +1,140 @@
+//! Identification sweeps driven through the daemon's API: a [`Session`] is anything that
+//! carries [`ApiRequest`]s to a daemon and lets its time pass (the socket client in real
+//! time, the in-process lockstep rig in simulated time); [`gather`] drives a planned tour
+//! (`calib::identify::plan_sweep`) out and back as constant-speed `follow_trajectory`s and
+//! polls the status into the [`Poll`]s `calib::identify::samples` cuts samples from. The
+//! fitting itself is pure and lives in `calib::identify`.
+
+use crate::calib::identify::{self, Poll};
+use crate::daemon::plan::TrajectoryPoint;
+use crate::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
+
+/// A connection to a daemon whose clock the caller can let run.
+pub trait Session {
+    /// Sends `req`; the daemon's reply (a refusal included), or why it could not be asked.
+    fn send(&mut self, req: ApiRequest) -> Result<Reply, String>;
+    /// Lets `seconds` pass on the daemon's clock (sleeps, or runs the simulation).
+    fn pause(&mut self, seconds: f64);
+    /// The daemon's clock, s (any origin).
+    fn clock_s(&self) -> f64;
+}
+
+/// Status poll interval of a sweep, s.
+pub const POLL_S: f64 = 0.02;
+/// Acceleration of the fastest joint at the start and end of every sweep, rad/s² (within the
+/// daemon's default limits of every joint).
+pub const SWEEP_ACCEL: f64 = 0.4;
+/// Slowest joint speed a polled sample counts for, rad/s (`calib::identify::samples`).
+pub const MIN_SAMPLE_SPEED: f64 = 0.02;
+/// The sweep speeds `pa10 identify` and the judges use by default, rad/s.
+pub const DEFAULT_SPEEDS: [f64; 2] = [0.15, 0.3];
+/// The longest one sweep may take, s.
+pub const MAX_SWEEP_S: f64 = 600.0;
+
+/// Why a sweep stopped.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    /// The daemon could not be asked.
+    #[error("asking pa10d: {0}")]
+    Session(String),
+    /// The daemon refused a request.
+    #[error("pa10d refused: {0}")]
+    Refused(String),
+    /// The daemon answered something else than asked for.
+    #[error("pa10d answered status with {0}")]
+    Unexpected(String),
+    /// The arm faulted during a sweep.
+    #[error("the sweep ended in a fault: {0}")]
+    Fault(String),
+    /// A sweep did not end in time.
+    #[error("a sweep took over {MAX_SWEEP_S} s")]
+    Timeout,
+    /// No sweep speed given, or one outside (0, 1] rad/s.
+    #[error("sweep speeds: one or more in (0, 1] rad/s, got {0:?}")]
+    Speeds(Vec<f64>),
+}
+
+/// Sends `req`; a refusal is an error with the daemon's reason.
+pub fn checked<S: Session + ?Sized>(s: &mut S, req: ApiRequest) -> Result<Answer, SweepError> {
+    match s.send(req).map_err(SweepError::Session)? {
+        Reply::Ok(a) => Ok(a),
+        Reply::Refused(e) => Err(SweepError::Refused(e)),
+    }
+}
+
+/// The daemon's status.
+pub fn status<S: Session + ?Sized>(s: &mut S) -> Result<Status, SweepError> {
+    match checked(s, ApiRequest::Status {})? {
+        Answer::Status(st) => Ok(*st),
+        other => Err(SweepError::Unexpected(format!("{other:?}"))),
+    }
+}
+
+/// Sweep speeds, rad/s: one or more, each in (0, 1].
+pub fn check_speeds(speeds: &[f64]) -> Result<(), SweepError> {
+    if speeds.is_empty()
+        || !speeds
+            .iter()
+            .all(|v| v.is_finite() && *v > 0.0 && *v <= 1.0)
+    {
+        return Err(SweepError::Speeds(speeds.to_vec()));
+    }
+    Ok(())
+}
+
+/// Drives `tour` (joint angles, rad) out and back — every segment both ways, the way out of
+/// segment i at `speeds[i]`, back at `speeds[i + 1]`, cyclically (rad/s of the fastest joint)
+/// — and polls the status every [`POLL_S`] while the arm moves.
+pub fn gather<S: Session + ?Sized>(
+    s: &mut S,
+    tour: &[[f64; 6]],
+    speeds: &[f64],
+) -> Result<Vec<Poll>, SweepError> {
+    check_speeds(speeds)?;
+    let mut polls = Vec::new();
+    let n = tour.len().saturating_sub(1);
+    let out = (0..n).map(|i| (tour[i], tour[i + 1], speeds[i % speeds.len()]));
+    let back = (0..n)
+        .rev()
+        .map(|i| (tour[i + 1], tour[i], speeds[(i + 1) % speeds.len()]));
+    for (a, b, speed) in out.chain(back) {
+        let Some(seg) = identify::sweep_segment(&a, &b, speed, SWEEP_ACCEL) else {
+            continue;
+        };
+        let points = seg
+            .into_iter()
+            .map(|(t, positions, velocities)| TrajectoryPoint {
+                positions,
+                velocities: Some(velocities),
+                accelerations: None,
+                time_from_start: t,
+            })
+            .collect();
+        checked(
+            s,
+            ApiRequest::FollowTrajectory {
+                points,
+                path_tolerance: None,
+                goal_tolerance: None,
+                goal_time_tolerance: None,
+            },
+        )?;
+        let start = s.clock_s();
+        loop {
+            s.pause(POLL_S);
+            let st = status(s)?;
+            match st.state {
+                State::Fault => return Err(SweepError::Fault(st.fault.unwrap_or_default())),
+                State::Holding if s.clock_s() - start > 0.1 => break,
+                _ if s.clock_s() - start > MAX_SWEEP_S => return Err(SweepError::Timeout),
+                _ => {}
+            }
+            polls.push(Poll {
+                t: st.time_s,
+                setpoint: st.setpoint,
+                current: st.current,
+            });
+        }
+    }
+    Ok(polls)
+}
