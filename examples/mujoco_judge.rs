@@ -16,7 +16,7 @@
 //!    against the trajectory's desired positions, every cycle.
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--seed N]
-//! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended]
+//! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
 //! [--current-filter-hz HZ] [--identify]` — needs `pip install mujoco` (the Python interpreter
 //! `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another plant script speaking
 //! docs/plant-protocol.md). docs/judge.md quotes it.
@@ -107,8 +107,9 @@ fn opts() -> Result<Opts> {
             "--torque-source" => {
                 o.torque_source = value("--torque-source")?;
                 ensure!(
-                    ["measured", "model", "blended"].contains(&o.torque_source.as_str()),
-                    "--torque-source: measured, model or blended, got {}",
+                    ["measured", "model", "blended", "estimated"]
+                        .contains(&o.torque_source.as_str()),
+                    "--torque-source: measured, model, blended or estimated, got {}",
                     o.torque_source
                 );
             }
@@ -120,7 +121,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended, --current-filter-hz HZ)"
+                "unknown argument {other} (--json, --quick, --check, --identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ)"
             ),
         }
     }
@@ -517,7 +518,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         ..Default::default()
     };
     // With the daemon's torques from the model, the fit's too (the currents carry friction).
-    let data = if o.torque_source == "model" {
+    let data = if ["model", "estimated"].contains(&o.torque_source.as_str()) {
         data.with_model_torques(&base)
     } else {
         data

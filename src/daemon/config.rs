@@ -678,6 +678,7 @@ mod tests {
             ("measured", TorqueSource::Measured),
             ("model", TorqueSource::Model),
             ("blended", TorqueSource::Blended),
+            ("estimated", TorqueSource::Estimated),
         ] {
             let text = y.replace("torque_source: measured", &format!("torque_source: {name}"));
             let s = Config::parse(&text, "t.yaml")

@@ -73,8 +73,15 @@ pub enum TorqueSource {
     /// an unknown payload or mass error after a few seconds at rest, like `measured`, but the
     /// currents' friction and rotor-acceleration torques never enter it, and no fast path
     /// from the spring's torque back to the motor command exists (with `measured`, a loaded,
-    /// lightly damped joint rings up: docs/judge.md).
+    /// lightly damped joint rings up: docs/judge.md). On sticking drives the currents at
+    /// rest carry whatever the stuck drive holds, and so does the correction.
     Blended,
+    /// The model's gravity plus the payload, plus a correction learnt only where the currents
+    /// are unbiased: a joint moving at constant speed, the model's identified friction
+    /// (`pa10 identify`) subtracted; frozen at rest (a sticking drive's held torque is
+    /// unknown) and while accelerating (the rotor's inertia torque). Without identified
+    /// friction it is `model`. See `daemon::control::estimate`.
+    Estimated,
 }
 
 /// Corner frequency of the `blended` torque source's correction, Hz: far below a loaded

@@ -5,8 +5,8 @@
 //! 2. [`advance_setpoint`](Controller::advance_setpoint) — the setpoint source in force (a
 //!    move, a trajectory under the speed scaling ramp, a stream with its deadline, a stop's
 //!    deceleration);
-//! 3. [`torque_estimate`](Controller::torque_estimate) — filtered measured torques or the
-//!    model's statics;
+//! 3. [`torque_estimate`](Controller::torque_estimate) — the torque source's estimate
+//!    (`estimate.rs`);
 //! 4. [`note_directions`](Controller::note_directions) and
 //!    [`compensated_target`](Controller::compensated_target) — the motor target that puts the
 //!    link at the setpoint;
@@ -134,35 +134,18 @@ impl Controller {
         Ok(())
     }
 
-    /// Step 3: the joint torques (N·m) the compensation uses: the model's statics at the
-    /// setpoint with the payload; or the measured currents × torque constants through the
-    /// first-order low-pass of `filter_hz`; or (`blended`) the model's statics plus the
-    /// correction `measured − model` low-passed at [`BLEND_HZ`] while holding, frozen in
-    /// motion.
+    /// Step 3: the joint torques (N·m) the compensation uses, from the configured source
+    /// ([`TorqueEstimator::estimate`]).
     pub(super) fn torque_estimate(&mut self, state: &JointState) -> [f64; 6] {
-        match self.p.torque_source {
-            TorqueSource::Model => self.model.static_torques(&self.setpoint.q, &self.load()),
-            TorqueSource::Blended => {
-                let model = self.model.static_torques(&self.setpoint.q, &self.load());
-                if matches!(self.activity, Activity::Holding) {
-                    let alpha = 1.0 - (-std::f64::consts::TAU * BLEND_HZ * self.p.period_s).exp();
-                    for j in 0..6 {
-                        let m = state.current[j] * self.p.torque_constants[j];
-                        self.tau_filtered[j] += alpha * (m - model[j] - self.tau_filtered[j]);
-                    }
-                }
-                std::array::from_fn(|j| model[j] + self.tau_filtered[j])
-            }
-            TorqueSource::Measured => {
-                let alpha =
-                    1.0 - (-std::f64::consts::TAU * self.p.filter_hz * self.p.period_s).exp();
-                for j in 0..6 {
-                    let m = state.current[j] * self.p.torque_constants[j];
-                    self.tau_filtered[j] += alpha * (m - self.tau_filtered[j]);
-                }
-                self.tau_filtered
-            }
-        }
+        let load = self.load();
+        let inputs = EstimateInputs {
+            model: &self.model,
+            load: &load,
+            setpoint: &self.setpoint,
+            holding: matches!(self.activity, Activity::Holding),
+            current: &state.current,
+        };
+        self.estimator.estimate(&self.p, &inputs)
     }
 
     /// Step 4a: the direction each joint moves in (the side its backlash is taken up on);
@@ -221,6 +204,7 @@ impl Controller {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::daemon::vocab::{BLEND_HZ, TorqueSource};
 
     const PERIOD: f64 = 0.002;
 

@@ -5,14 +5,14 @@
 //! feedback as arguments and never reads a clock or a socket, so the whole loop is tested
 //! without either; the daemon's control thread only moves frames. No allocation per cycle.
 //!
-//! - **Torques**: [`TorqueSource::Measured`] (the default) uses the motor currents × torque
-//!   constants through a first-order low-pass: it sees every load, tooling and unknown
-//!   payloads included, which matters because calibration identifies the springs from
-//!   measured torques but never the masses; [`TorqueSource::Model`] uses the model's gravity
-//!   plus the configured payload at the link setpoint (noise-free, exact only when the
-//!   model's bodies and the payload are right); [`TorqueSource::Blended`] adds to the model's
-//!   a correction learnt from the measured torques at rest and frozen in motion (friction and
-//!   rotor torques never enter it; no fast feedback through the spring).
+//! - **Torques** ([`estimate`]): `measured` (the motor currents × torque constants through a
+//!   first-order low-pass: every load, and every bias of the currents — friction, the
+//!   rotor's acceleration torque, a sticking drive's held torque); `model` (the model's
+//!   gravity plus the configured payload at the link setpoint: noise-free, exact only when
+//!   the model's bodies and the payload are right, which `pa10 identify` sees to);
+//!   `blended` (`model` plus a correction learnt from the currents at rest, frozen in
+//!   motion); `estimated` (`model` plus a correction learnt only from joints at constant
+//!   speed with the identified friction removed, frozen at rest and accelerating).
 //! - **Compensation**: the motor target that puts the *link* at the setpoint,
 //!   `q_motor = q_link + δ(τ) + e(q_motor) + (b/2)·dir` ([`Model::compensate`]: springs,
 //!   and the transmission error, eccentricity and backlash `pa10 discover` may add; `dir` is
@@ -26,15 +26,17 @@
 use std::sync::Arc;
 
 use super::plan::{Move, MoveError, Setpoint, Trajectory, TrajectoryPoint};
-use super::vocab::{BLEND_HZ, Limits, TorqueSource};
+use super::vocab::Limits;
 
 use crate::model::{ExternalLoad, Model, NO_DIRECTION, Torques};
 use crate::record::Mode;
 
 pub use super::vocab::JointState;
+pub use estimate::{ESTIMATE_MAX_ACCEL, ESTIMATE_MIN_SPEED, EstimateInputs, TorqueEstimator};
 pub use params::*;
 
 mod cycle;
+pub mod estimate;
 mod params;
 mod stream;
 
@@ -45,8 +47,8 @@ pub struct Controller {
     p: LoopParams,
     setpoint: Setpoint,
     activity: Activity,
-    /// `measured`: the filtered measured torques; `blended`: the learnt correction (N·m).
-    tau_filtered: [f64; 6],
+    /// Step 3's state: the measured torques' filter or the learnt correction.
+    estimator: TorqueEstimator,
     /// Direction each joint last moved in (−1, 0, +1): the side its backlash is taken up on.
     direction: [f64; 6],
     last_feedback_s: f64,
@@ -94,7 +96,7 @@ impl Controller {
                 qd: [0.0; 6],
             },
             activity: Activity::Holding,
-            tau_filtered: [0.0; 6],
+            estimator: TorqueEstimator::default(),
             direction: [0.0; 6],
             last_feedback_s: first.stamp_s,
             missed: 0,

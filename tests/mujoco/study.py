@@ -1,0 +1,143 @@
+#!/usr/bin/env python3
+"""The MuJoCo judge over a grid of plants: seeds x friction models (creep, stick) x friction
+scales, run in parallel, each run `mujoco_judge --json`, summarised per (friction model,
+scale) as docs/judge.md's tables (issue #40).
+
+    python3 tests/mujoco/study.py [--judge target/release/examples/mujoco_judge]
+        [--seeds 1-10] [--models creep,stick] [--friction 0,1,2] [--jobs 2] [--quick]
+        [--out runs.jsonl] [--check RATIO] [-- judge arguments, e.g. --torque-source model --identify]
+
+Every run's JSON line (or its failure) goes to --out; the summary goes to stdout. With
+--check RATIO the exit status is 1 when a run failed, faulted or aborted, or a calibrated mean
+error exceeded RATIO x the Monte Carlo floor. A run has a time limit (30 min).
+"""
+import argparse
+import concurrent.futures as cf
+import json
+import statistics
+import subprocess
+import sys
+
+RUN_TIMEOUT_S = 1800
+
+
+def seeds(text):
+    out = []
+    for part in text.split(","):
+        if "-" in part:
+            a, b = part.split("-")
+            out.extend(range(int(a), int(b) + 1))
+        else:
+            out.append(int(part))
+    if not out or any(s < 0 for s in out):
+        raise argparse.ArgumentTypeError(f"seeds: e.g. 1-10 or 1,4,7, got {text}")
+    return out
+
+
+def floats(text):
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a comma-separated list of numbers, got {text}")
+    if any(not 0 <= x <= 10 for x in v):
+        raise argparse.ArgumentTypeError(f"friction scales 0...10, got {text}")
+    return v
+
+
+def run(judge, seed, model, friction, quick, extra):
+    cmd = [judge, "--json", "--seed", str(seed), "--friction-model", model,
+           "--friction", str(friction)] + (["--quick"] if quick else []) + extra
+    key = {"seed": seed, "friction_model": model, "friction_scale": friction}
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=RUN_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        return dict(key, failed=f"no answer in {RUN_TIMEOUT_S} s")
+    lines = [l for l in p.stdout.splitlines() if l.startswith("{")]
+    if p.returncode != 0 or not lines:
+        return dict(key, failed=(p.stderr.strip().splitlines() or ["(no output)"])[-1])
+    out = json.loads(lines[-1])
+    return dict(out, **key)
+
+
+def problems(r, ratio):
+    if "failed" in r:
+        return [f"failed: {r['failed']}"]
+    bad = [f"fault: {f}" for f in r["validation_faults"]]
+    if r["aborted"]:
+        bad.append(f"aborted: {r['aborted']}")
+    for l in r["loads"]:
+        if ratio is not None and l["calibrated_mean_mm"] > ratio * r["floor_mm"]:
+            bad.append(f"{l['load_n']:.0f} N: {l['calibrated_mean_mm'] / r['floor_mm']:.2f}x the floor")
+    return bad
+
+
+def summary(results):
+    groups = {}
+    for r in results:
+        groups.setdefault((r["friction_model"], r["friction_scale"]), []).append(r)
+    print("| drives | friction | runs (failed/faulted/aborted) | calibrated / floor at 0 / 45 / 90 N: mean (max) "
+          "| still after a move [s]: mean (max) | tracking RMS calibrated [mrad]: mean (max) "
+          "| gravity RMS J2 / J3 / J5 [N·m], nominal → identified |")
+    print("|---|---|---|---|---|---|---|")
+    for (model, scale), rs in sorted(groups.items()):
+        ok = [r for r in rs if "failed" not in r]
+        failed = len(rs) - len(ok)
+        faulted = sum(1 for r in ok if r["validation_faults"])
+        aborted = sum(1 for r in ok if r["aborted"])
+        ratios = []
+        for k in range(3):
+            v = [r["loads"][k]["calibrated_mean_mm"] / r["floor_mm"] for r in ok]
+            ratios.append(f"{statistics.mean(v):.2f} ({max(v):.2f})" if v else "–")
+        still = [r["move_settle_mean_s"][1] for r in ok]
+        track = [r["tracking"]["calibrated_rms_mrad"] for r in ok]
+        ids = [r["identification"] for r in ok if r.get("identification")]
+        grav = "–"
+        if ids:
+            g = lambda k, j: statistics.mean(i["gravity_rms_nm"][k][j] for i in ids)
+            grav = " / ".join(f"{g(0, j):.2f} → {g(1, j):.2f}" for j in (1, 2, 4))
+        fmt = lambda v: f"{statistics.mean(v):.2f} ({max(v):.2f})" if v else "–"
+        print(f"| {model} | ×{scale:g} | {len(rs)} ({failed}/{faulted}/{aborted}) | {' / '.join(ratios)} "
+              f"| {fmt(still)} | {fmt(track)} | {grav} |")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--judge", default="target/release/examples/mujoco_judge")
+    ap.add_argument("--seeds", type=seeds, default=seeds("1-10"))
+    ap.add_argument("--models", default="creep,stick")
+    ap.add_argument("--friction", type=floats, default=floats("0,1,2"))
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--out")
+    ap.add_argument("--check", type=float, metavar="RATIO")
+    ap.add_argument("extra", nargs="*", help="after --: arguments for every judge run")
+    a = ap.parse_args()
+    models = a.models.split(",")
+    if any(m not in ("creep", "stick") for m in models):
+        ap.error(f"--models: creep and/or stick, got {a.models}")
+    if not 1 <= a.jobs <= 64:
+        ap.error("--jobs: 1...64")
+    grid = [(s, m, f) for m in models for f in a.friction for s in a.seeds]
+    results = []
+    with cf.ThreadPoolExecutor(a.jobs) as ex:
+        futs = [ex.submit(run, a.judge, s, m, f, a.quick, a.extra) for (s, m, f) in grid]
+        for fut in cf.as_completed(futs):
+            r = fut.result()
+            results.append(r)
+            print(f"seed {r['seed']} {r['friction_model']} x{r['friction_scale']:g}: "
+                  + ("; ".join(problems(r, a.check)) or "ok"), file=sys.stderr, flush=True)
+    if a.out:
+        with open(a.out, "w") as f:
+            for r in results:
+                f.write(json.dumps(r) + "\n")
+    summary(results)
+    bad = [(r, p) for r in results for p in problems(r, a.check)]
+    if a.check is not None and bad:
+        for r, p in bad:
+            print(f"check failed: seed {r['seed']} {r['friction_model']} x{r['friction_scale']:g}: {p}",
+                  file=sys.stderr)
+        sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()
