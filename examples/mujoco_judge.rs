@@ -17,7 +17,7 @@
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
-//! [--current-filter-hz HZ] [--identify]` — needs `pip install mujoco` (the Python interpreter
+//! [--current-filter-hz HZ] [--identify] [--hold-deadband RAD]` — needs `pip install mujoco` (the Python interpreter
 //! `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another plant script speaking
 //! docs/plant-protocol.md). docs/judge.md quotes it.
 
@@ -64,6 +64,8 @@ struct Opts {
     filter_hz: Option<f64>,
     /// Identify the gravity model and friction through the daemon first.
     identify: bool,
+    /// The daemon's `control.hold_deadband`, rad.
+    hold_deadband: f64,
 }
 
 fn opts() -> Result<Opts> {
@@ -77,6 +79,7 @@ fn opts() -> Result<Opts> {
         torque_source: "blended".into(),
         filter_hz: None,
         identify: false,
+        hold_deadband: 0.0,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -113,6 +116,11 @@ fn opts() -> Result<Opts> {
                     o.torque_source
                 );
             }
+            "--hold-deadband" => {
+                o.hold_deadband = value("--hold-deadband")?
+                    .parse()
+                    .context("--hold-deadband: rad")?;
+            }
             "--current-filter-hz" => {
                 let f: f64 = value("--current-filter-hz")?
                     .parse()
@@ -121,7 +129,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ)"
+                "unknown argument {other} (--json, --quick, --check, --identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD)"
             ),
         }
     }
@@ -176,6 +184,8 @@ struct Outcome {
     /// Why the dynamic runs ended early (a fault the daemon did not recover from), if so
     aborted: Option<String>,
     torque_source: String,
+    /// The daemon's `control.hold_deadband`, rad.
+    hold_deadband: f64,
     identification: Option<Identification>,
     seed: u64,
     calibration_rows: usize,
@@ -288,7 +298,11 @@ fn settings(dir: &Path, o: &Opts) -> Result<Settings> {
         .replace("following_error: 0.01", "following_error: 0.05")
         .replace(
             "current_filter_hz: 20.0",
-            &format!("current_filter_hz: {}", o.filter_hz.unwrap_or(20.0)),
+            &format!(
+                "current_filter_hz: {}\n  hold_deadband: {}",
+                o.filter_hz.unwrap_or(20.0),
+                o.hold_deadband
+            ),
         )
         .replace("log_level: info", "log_level: warn");
     let path = dir.join("pa10d.yaml");
@@ -650,6 +664,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         validation_faults: faults,
         aborted,
         torque_source: o.torque_source.clone(),
+        hold_deadband: o.hold_deadband,
         identification,
         seed: o.seed,
         calibration_rows: data.rows.len(),

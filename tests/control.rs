@@ -31,6 +31,7 @@ fn params() -> LoopParams {
         gain: 20.0,
         torque_source: TorqueSource::Measured,
         filter_hz: 20.0,
+        hold_deadband: 0.0,
         torque_constants: SIM_TORQUE_CONSTANTS,
         payload_n: 0.0,
         payload_com: [0.0; 3],

@@ -102,6 +102,13 @@ pub struct ControlConfig {
     /// Low-pass cut-off of the measured torques, Hz.
     #[serde(default = "default_filter")]
     pub current_filter_hz: f64,
+    /// Holding, a joint whose motor-angle error (link side) is below this gets no position
+    /// correction, rad (0 … 1e-3; 0: off). On sticking drives a loop that keeps correcting
+    /// within the stuck band winds the speed loop up to breakaway, slips past and hunts
+    /// (docs/judge.md §8); a band of a few resolver counts (one count is 7.7 µrad link side)
+    /// lets the joint stop.
+    #[serde(default)]
+    pub hold_deadband: f64,
     /// Real-time options.
     #[serde(default)]
     pub realtime: Realtime,
@@ -239,12 +246,16 @@ pub struct Config {
     pub sim: Option<SimConfig>,
 }
 
+/// The widest `control.hold_deadband`, rad (≈ 1 mm at the tool).
+pub const MAX_HOLD_DEADBAND: f64 = 1e-3;
+
 fn default_control() -> ControlConfig {
     ControlConfig {
         rate_hz: default_rate(),
         position_gain: default_gain(),
         torque_source: default_torque_source(),
         current_filter_hz: default_filter(),
+        hold_deadband: 0.0,
         realtime: Realtime::default(),
     }
 }
@@ -419,6 +430,17 @@ impl Config {
                 ),
             ));
         }
+        if !(c.control.hold_deadband.is_finite()
+            && (0.0..=MAX_HOLD_DEADBAND).contains(&c.control.hold_deadband))
+        {
+            return Err(invalid(
+                "control.hold_deadband",
+                format!(
+                    "must be within 0…{MAX_HOLD_DEADBAND} rad, got {}",
+                    c.control.hold_deadband
+                ),
+            ));
+        }
         if !(c.control.current_filter_hz.is_finite()
             && c.control.current_filter_hz > 0.0
             && c.control.current_filter_hz < c.control.rate_hz / 2.0)
@@ -582,6 +604,7 @@ impl Config {
             gain: control.position_gain,
             torque_source: control.torque_source,
             filter_hz: control.current_filter_hz,
+            hold_deadband: control.hold_deadband,
             torque_constants,
             payload_n,
             payload_com: [0.0; 3],
@@ -628,131 +651,7 @@ impl Config {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn root() -> PathBuf {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("config")
-    }
-
-    fn sim_yaml() -> String {
-        std::fs::read_to_string(root().join("sim.yaml")).unwrap()
-    }
-
-    fn err(text: &str) -> String {
-        match Config::parse(text, "t.yaml").and_then(|c| c.validate(&root())) {
-            Ok(_) => panic!("accepted:\n{text}"),
-            Err(e) => e.to_string(),
-        }
-    }
-
-    #[test]
-    fn shipped_configs_are_valid() {
-        let s = shipped_sim();
-        assert_eq!(s.bus.backend, Backend::Virtual);
-        assert!((s.bus_load - 0.8475).abs() < 1e-9);
-        assert_eq!(s.api.mode, 0o660);
-        // the loop's parameters, in seconds, with the model's position limits
-        assert!((s.control.period_s - 0.002).abs() < 1e-15);
-        assert!((s.control.feedback_timeout_s - 0.02).abs() < 1e-15);
-        assert_eq!(s.control.limits.upper, s.model.limits().upper);
-        assert_eq!(s.link.watchdog_ms, 50);
-        assert_eq!(s.api.model_dir, root());
-        // the hardware config names /etc/pa10d/calibrated.yaml; validate it against the nominal
-        let mut h = Config::parse(
-            &std::fs::read_to_string(root().join("pa10d.yaml")).unwrap(),
-            "pa10d.yaml",
-        )
-        .unwrap();
-        assert_eq!(h.model, PathBuf::from("/etc/pa10d/calibrated.yaml"));
-        h.model = root().join("model-nominal.yaml");
-        let h = h.validate(&root()).unwrap();
-        assert_eq!(h.bus.interface.as_deref(), Some("can0"));
-        assert_eq!(h.realtime.sched_fifo_priority, Some(80));
-    }
-
-    #[test]
-    fn every_torque_source_parses_and_a_wrong_one_is_named() {
-        let y = sim_yaml();
-        for (name, want) in [
-            ("measured", TorqueSource::Measured),
-            ("model", TorqueSource::Model),
-            ("blended", TorqueSource::Blended),
-            ("estimated", TorqueSource::Estimated),
-        ] {
-            let text = y.replace("torque_source: measured", &format!("torque_source: {name}"));
-            let s = Config::parse(&text, "t.yaml")
-                .unwrap()
-                .validate(&root())
-                .unwrap();
-            assert_eq!(s.control.torque_source, want);
-        }
-        let e = match Config::parse(
-            &y.replace("torque_source: measured", "torque_source: guess"),
-            "t.yaml",
-        ) {
-            Ok(_) => panic!("accepted torque_source: guess"),
-            Err(e) => e.to_string(),
-        };
-        assert!(e.contains("guess") && e.contains("blended"), "{e}");
-    }
-
-    #[test]
-    fn every_error_names_its_key() {
-        let y = sim_yaml();
-        assert!(
-            err(&y.replace("  port: 8765", "  port: 8765\n  rate_hz: 0"))
-                .contains("invalid `live.rate_hz`: must be within 1…500 Hz, got 0")
-        );
-        assert!(
-            err(&y.replace("rate_hz: 500", "rate_hz: 700"))
-                .contains("invalid `control.rate_hz`: 700 Hz needs 118.")
-        );
-        assert!(err(&y.replace("payload_n: 0.0", "payload_n: -3")).contains("`payload_n`"));
-        assert!(
-            err(&y.replace("following_error: 0.01", "following_error: 2"))
-                .contains("`limits.following_error`")
-        );
-        assert!(err(&y.replace("mode: \"0660\"", "mode: \"rw\"")).contains("`api.mode`"));
-        assert!(
-            err(&y.replace("controller_watchdog_ms: 50", "controller_watchdog_ms: 300"))
-                .contains("`limits.controller_watchdog_ms`")
-        );
-        assert!(
-            err(&y.replace("  mode: \"0660\"", "  mode: \"0660\"\n  max_clients: 0"))
-                .contains("`api.max_clients`")
-        );
-        assert!(
-            err(&y.replace("backend: virtual", "backend: socketcan")).contains("`bus.interface`")
-        );
-        assert!(
-            err(&y.replace("log_level: info", "log_levle: info"))
-                .contains("unknown field `log_levle`")
-        );
-        assert!(
-            err(&y.replace("model: model-nominal.yaml", "model: nope.yaml"))
-                .contains("invalid `model`")
-        );
-        assert!(
-            err(&y.replace(
-                "[15.0, 30.0, 15.0, 5.0, 5.0, 2.0]",
-                "[15.0, 30.0, 0.0, 5.0, 5.0, 2.0]"
-            ))
-            .contains("`torque_constants[2]`")
-        );
-        assert!(
-            err(&y.replace(
-                "speed: [0.5, 0.5, 1.0, 2.0, 2.0, 2.0]",
-                "speed: [0.5, 3.0, 1.0, 2.0, 2.0, 2.0]"
-            ))
-            .contains("`limits.speed[1]`")
-        );
-        assert!(
-            err(&y.replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 1"))
-                .contains("at least two cycles")
-        );
-    }
-}
+mod tests;
 
 /// The live view's configuration.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -7,7 +7,8 @@ scale) as docs/judge.md's tables (issue #40).
         [--seeds 1-10] [--models creep,stick] [--friction 0,1,2] [--jobs 2] [--quick]
         [--out runs.jsonl] [--check RATIO] [-- judge arguments, e.g. --torque-source model --identify]
 
-Every run's JSON line (or its failure) goes to --out; the summary goes to stdout. With
+Every run's JSON line (or its failure) goes to --out as it ends; the summary goes to stdout
+(`--summary FILE` prints it for the lines of an earlier --out). With
 --check RATIO the exit status is 1 when a run failed, faulted or aborted, or a calibrated mean
 error exceeded RATIO x the Monte Carlo floor. A run has a time limit (30 min).
 """
@@ -111,7 +112,12 @@ def main():
     ap.add_argument("--out")
     ap.add_argument("--check", type=float, metavar="RATIO")
     ap.add_argument("extra", nargs="*", help="after --: arguments for every judge run")
+    ap.add_argument("--summary", metavar="FILE", help="only summarise an earlier --out")
     a = ap.parse_args()
+    if a.summary:
+        with open(a.summary) as f:
+            summary([json.loads(l) for l in f if l.strip()])
+        return
     models = a.models.split(",")
     if any(m not in ("creep", "stick") for m in models):
         ap.error(f"--models: creep and/or stick, got {a.models}")
@@ -119,17 +125,19 @@ def main():
         ap.error("--jobs: 1...64")
     grid = [(s, m, f) for m in models for f in a.friction for s in a.seeds]
     results = []
+    out = open(a.out, "w") if a.out else None
     with cf.ThreadPoolExecutor(a.jobs) as ex:
         futs = [ex.submit(run, a.judge, s, m, f, a.quick, a.extra) for (s, m, f) in grid]
         for fut in cf.as_completed(futs):
             r = fut.result()
             results.append(r)
+            if out:
+                out.write(json.dumps(r) + "\n")
+                out.flush()
             print(f"seed {r['seed']} {r['friction_model']} x{r['friction_scale']:g}: "
                   + ("; ".join(problems(r, a.check)) or "ok"), file=sys.stderr, flush=True)
-    if a.out:
-        with open(a.out, "w") as f:
-            for r in results:
-                f.write(json.dumps(r) + "\n")
+    if out:
+        out.close()
     summary(results)
     bad = [(r, p) for r in results for p in problems(r, a.check)]
     if a.check is not None and bad:

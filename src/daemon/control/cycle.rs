@@ -167,7 +167,8 @@ impl Controller {
     }
 
     /// Step 5: the position loop on the motor side, `speed = q̇_setpoint + K·(target − q_motor)`
-    /// clamped to the speed limits (rad/s), after the following-error and joint-limit checks
+    /// clamped to the speed limits (rad/s) — holding, an error within `hold_deadband` counts
+    /// as zero —, after the following-error and joint-limit checks
     /// (the link angle estimated as the measured motor angle less the compensation). Returns
     /// the speeds and those link angles (rad).
     pub(super) fn position_loop(
@@ -178,6 +179,7 @@ impl Controller {
         let lim = self.model.limits();
         let mut out = [0.0; 6];
         let mut link = [0.0; 6];
+        let holding = matches!(self.activity, Activity::Holding);
         for j in 0..6 {
             let e = target[j] - state.q_motor[j];
             if e.abs() > self.p.following_error {
@@ -194,6 +196,11 @@ impl Controller {
                     value: link[j],
                 });
             }
+            let e = if holding && e.abs() < self.p.hold_deadband {
+                0.0
+            } else {
+                e
+            };
             out[j] = (self.setpoint.qd[j] + self.p.gain * e)
                 .clamp(-self.p.limits.speed[j], self.p.limits.speed[j]);
         }
@@ -345,6 +352,27 @@ mod tests {
         target[1] = Q0[1] + 0.5; // 10 rad/s asked
         let (speeds, _) = c.position_loop(&s, &target).expect("within limits");
         assert_eq!(speeds[1], 1.0, "clamped to the speed limit");
+    }
+
+    #[test]
+    fn holding_errors_within_the_deadband_get_no_correction_and_moving_ones_do() {
+        let s = state(Q0, [0.0; 6], 0.0);
+        let mut p = params();
+        p.hold_deadband = 2e-5;
+        let mut c = Controller::new(Model::nominal(), p, &s);
+        let mut target = Q0;
+        target[1] += 1.5e-5; // within the band
+        target[2] += 3e-5; // outside: gain 20 → 6e-4 rad/s
+        let (speeds, _) = c.position_loop(&s, &target).expect("within limits");
+        assert_eq!(speeds[1], 0.0);
+        assert!((speeds[2] - 6e-4).abs() < 1e-12);
+        // moving, the band does not apply
+        let mut q = Q0;
+        q[1] += 0.1;
+        let mv = Move::joints(Q0, q, &c.params().limits).expect("a valid move");
+        c.start_move(mv, 0.0).expect("accepted");
+        let (speeds, _) = c.position_loop(&s, &target).expect("within limits");
+        assert!((speeds[1] - 3e-4).abs() < 1e-12, "{}", speeds[1]);
     }
 
     #[test]
