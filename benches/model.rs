@@ -84,6 +84,8 @@ fn bench(c: &mut Criterion) {
         gain: 20.0,
         torque_source: TorqueSource::Measured,
         filter_hz: 20.0,
+        hold_deadband: 4e-5,
+        hold_damping: 1.0,
         torque_constants: [15.0, 30.0, 15.0, 5.0, 5.0, 2.0],
         payload_n: 44.0,
         payload_com: [0.0; 3],

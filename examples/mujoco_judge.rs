@@ -17,7 +17,7 @@
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
-//! [--current-filter-hz HZ] [--identify] [--hold-deadband RAD]` — needs `pip install mujoco` (the Python interpreter
+//! [--current-filter-hz HZ] [--identify] [--hold-deadband RAD] [--hold-damping D]` — needs `pip install mujoco` (the Python interpreter
 //! `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another plant script speaking
 //! docs/plant-protocol.md). docs/judge.md quotes it.
 
@@ -66,6 +66,8 @@ struct Opts {
     identify: bool,
     /// The daemon's `control.hold_deadband`, rad.
     hold_deadband: f64,
+    /// The daemon's `control.hold_damping`.
+    hold_damping: f64,
 }
 
 fn opts() -> Result<Opts> {
@@ -80,6 +82,7 @@ fn opts() -> Result<Opts> {
         filter_hz: None,
         identify: false,
         hold_deadband: 0.0,
+        hold_damping: 0.0,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -121,6 +124,11 @@ fn opts() -> Result<Opts> {
                     .parse()
                     .context("--hold-deadband: rad")?;
             }
+            "--hold-damping" => {
+                o.hold_damping = value("--hold-damping")?
+                    .parse()
+                    .context("--hold-damping: a number")?;
+            }
             "--current-filter-hz" => {
                 let f: f64 = value("--current-filter-hz")?
                     .parse()
@@ -129,7 +137,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD)"
+                "unknown argument {other} (--json, --quick, --check, --identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D)"
             ),
         }
     }
@@ -186,6 +194,8 @@ struct Outcome {
     torque_source: String,
     /// The daemon's `control.hold_deadband`, rad.
     hold_deadband: f64,
+    /// The daemon's `control.hold_damping`.
+    hold_damping: f64,
     identification: Option<Identification>,
     seed: u64,
     calibration_rows: usize,
@@ -299,9 +309,10 @@ fn settings(dir: &Path, o: &Opts) -> Result<Settings> {
         .replace(
             "current_filter_hz: 20.0",
             &format!(
-                "current_filter_hz: {}\n  hold_deadband: {}",
+                "current_filter_hz: {}\n  hold_deadband: {}\n  hold_damping: {}",
                 o.filter_hz.unwrap_or(20.0),
-                o.hold_deadband
+                o.hold_deadband,
+                o.hold_damping
             ),
         )
         .replace("log_level: info", "log_level: warn");
@@ -665,6 +676,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         aborted,
         torque_source: o.torque_source.clone(),
         hold_deadband: o.hold_deadband,
+        hold_damping: o.hold_damping,
         identification,
         seed: o.seed,
         calibration_rows: data.rows.len(),

@@ -32,6 +32,7 @@ fn params() -> LoopParams {
         torque_source: TorqueSource::Measured,
         filter_hz: 20.0,
         hold_deadband: 0.0,
+        hold_damping: 0.0,
         torque_constants: SIM_TORQUE_CONSTANTS,
         payload_n: 0.0,
         payload_com: [0.0; 3],

@@ -93,12 +93,9 @@ fn every_error_names_its_key() {
         err(&y.replace("  mode: \"0660\"", "  mode: \"0660\"\n  max_clients: 0"))
             .contains("`api.max_clients`")
     );
+    assert!(err(&y.replace("backend: virtual", "backend: socketcan")).contains("`bus.interface`"));
     assert!(
-        err(&y.replace("backend: virtual", "backend: socketcan")).contains("`bus.interface`")
-    );
-    assert!(
-        err(&y.replace("log_level: info", "log_levle: info"))
-            .contains("unknown field `log_levle`")
+        err(&y.replace("log_level: info", "log_levle: info")).contains("unknown field `log_levle`")
     );
     assert!(
         err(&y.replace("model: model-nominal.yaml", "model: nope.yaml"))
@@ -138,4 +135,11 @@ fn every_error_names_its_key() {
         .validate(&root())
         .unwrap();
     assert_eq!(s.control.hold_deadband, 4e-5);
+    for bad in ["-1", "11", ".inf"] {
+        let text = y.replace(
+            "current_filter_hz: 20.0",
+            &format!("current_filter_hz: 20.0\n  hold_damping: {bad}"),
+        );
+        assert!(err(&text).contains("`control.hold_damping`"), "{bad}");
+    }
 }

@@ -30,6 +30,9 @@ impl Controller {
     ) -> Result<Option<JointState>, Fault> {
         match fb {
             Some(f) => {
+                if let Some(prev) = self.last_state {
+                    self.note_motor_speed(&prev, f);
+                }
                 self.last_feedback_s = f.stamp_s;
                 self.last_state = Some(*f);
                 self.missed = 0;
@@ -166,9 +169,23 @@ impl Controller {
             .map_err(|_| Fault::Setpoint(MoveError::NonFinite("compensated target")))
     }
 
+    /// Step 1a: the motor speeds from two consecutive resolver readings (rad/s), low-passed at
+    /// [`MOTOR_SPEED_HZ`]; a gap of 0.1 s or more is not differentiated.
+    fn note_motor_speed(&mut self, prev: &JointState, now: &JointState) {
+        let dt = now.stamp_s - prev.stamp_s;
+        if dt > 0.0 && dt < 0.1 {
+            let a = 1.0 - (-std::f64::consts::TAU * MOTOR_SPEED_HZ * dt).exp();
+            for j in 0..6 {
+                let v = (now.q_motor[j] - prev.q_motor[j]) / dt;
+                self.motor_speed[j] += a * (v - self.motor_speed[j]);
+            }
+        }
+    }
+
     /// Step 5: the position loop on the motor side, `speed = q̇_setpoint + K·(target − q_motor)`
-    /// clamped to the speed limits (rad/s) — holding, an error within `hold_deadband` counts
-    /// as zero —, after the following-error and joint-limit checks
+    /// clamped to the speed limits (rad/s); holding, an error within `hold_deadband` counts
+    /// as zero and `hold_damping` × the resolvers' motor speed is taken off (a drive breaking
+    /// away from sticking is braked at once instead of slipping past the target). After the following-error and joint-limit checks
     /// (the link angle estimated as the measured motor angle less the compensation). Returns
     /// the speeds and those link angles (rad).
     pub(super) fn position_loop(
@@ -201,7 +218,12 @@ impl Controller {
             } else {
                 e
             };
-            out[j] = (self.setpoint.qd[j] + self.p.gain * e)
+            let damping = if holding {
+                self.p.hold_damping * self.motor_speed[j]
+            } else {
+                0.0
+            };
+            out[j] = (self.setpoint.qd[j] + self.p.gain * e - damping)
                 .clamp(-self.p.limits.speed[j], self.p.limits.speed[j]);
         }
         Ok((out, link))
@@ -373,6 +395,31 @@ mod tests {
         c.start_move(mv, 0.0).expect("accepted");
         let (speeds, _) = c.position_loop(&s, &target).expect("within limits");
         assert!((speeds[1] - 3e-4).abs() < 1e-12, "{}", speeds[1]);
+    }
+
+    #[test]
+    fn holding_damping_brakes_the_motor_speed_the_resolvers_show() {
+        let mut p = params();
+        p.hold_damping = 2.0;
+        let mut c = Controller::new(Model::nominal(), p, &state(Q0, [0.0; 6], 0.0));
+        // J2 slipping at 0.05 rad/s for 0.2 s: the estimate follows within a few 1/(2π·50 Hz)
+        let mut s = state(Q0, [0.0; 6], 0.0);
+        for k in 1..=100 {
+            s.q_motor[1] = Q0[1] + 0.05 * k as f64 * PERIOD;
+            s.stamp_s = k as f64 * PERIOD;
+            c.take_feedback(s.stamp_s, Some(&s))
+                .expect("fresh feedback");
+        }
+        let (speeds, _) = c.position_loop(&s, &s.q_motor).expect("within limits");
+        assert!((speeds[1] + 2.0 * 0.05).abs() < 1e-3, "{}", speeds[1]);
+        assert_eq!(speeds[0], 0.0);
+        // moving, no damping term
+        let mut q = Q0;
+        q[0] += 0.1;
+        let mv = Move::joints(Q0, q, &c.params().limits).expect("a valid move");
+        c.start_move(mv, s.stamp_s).expect("accepted");
+        let (speeds, _) = c.position_loop(&s, &s.q_motor).expect("within limits");
+        assert_eq!(speeds[1], 0.0);
     }
 
     #[test]

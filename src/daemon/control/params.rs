@@ -289,6 +289,9 @@ pub struct LoopParams {
     pub filter_hz: f64,
     /// Holding, motor-angle errors below this get no position correction, rad (0: off).
     pub hold_deadband: f64,
+    /// Holding, this × the resolvers' motor speed is taken off the speed command
+    /// (dimensionless; 0: off).
+    pub hold_damping: f64,
     /// Torque constants, N·m/A.
     pub torque_constants: [f64; 6],
     /// Payload hung at the tool, N.
@@ -318,6 +321,7 @@ pub(crate) fn test_params() -> LoopParams {
         torque_source: TorqueSource::Measured,
         filter_hz: 20.0,
         hold_deadband: 0.0,
+        hold_damping: 0.0,
         torque_constants: [10.0; 6],
         payload_n: 0.0,
         payload_com: [0.0; 3],
