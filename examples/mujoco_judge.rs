@@ -6,7 +6,7 @@
 //! 1. A calibration campaign gathered through the daemon (27 poses × 0/22/44 N; the instrument
 //!    is MuJoCo's tool pose seen through the drawn instrument frame with the paper's noise),
 //!    calibrated (the 30-parameter model and the nominal model placed).
-//!    With `--identify` an identification tour comes first (`pa10 identify`'s sweeps through
+//!    Unless `--no-identify`, an identification tour comes first (`pa10 identify`'s sweeps through
 //!    the daemon): the gravity model and friction it finds are the model every later step
 //!    starts from (the fit's model torques, the daemon's), judged against MuJoCo's spring
 //!    torques at rest at the novel poses.
@@ -17,9 +17,12 @@
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
-//! [--current-filter-hz HZ] [--identify] [--hold-deadband RAD] [--hold-damping D]` — needs `pip install mujoco` (the Python interpreter
-//! `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another plant script speaking
-//! docs/plant-protocol.md). docs/judge.md quotes it.
+//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D]`
+//! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
+//! lab: `pa10 identify` first, `torque_source: estimated`, `hold_damping: 1`. Needs `pip install
+//! mujoco` (the Python interpreter `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another
+//! plant script speaking docs/plant-protocol.md). docs/judge.md quotes it;
+//! `tests/mujoco/study.py` runs it over seeds and friction behaviours.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -78,11 +81,11 @@ fn opts() -> Result<Opts> {
         seed: 1,
         friction: 1.0,
         friction_model: FrictionModel::Creep,
-        torque_source: "blended".into(),
+        torque_source: "estimated".into(),
         filter_hz: None,
-        identify: false,
+        identify: true,
         hold_deadband: 0.0,
-        hold_damping: 0.0,
+        hold_damping: 1.0,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -92,6 +95,7 @@ fn opts() -> Result<Opts> {
             "--quick" => o.quick = true,
             "--check" => o.check = true,
             "--identify" => o.identify = true,
+            "--no-identify" => o.identify = false,
             "--seed" => o.seed = value("--seed")?.parse().context("--seed: an integer")?,
             "--friction" => {
                 o.friction = value("--friction")?
@@ -137,7 +141,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D)"
+                "unknown argument {other} (--json, --quick, --check, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D)"
             ),
         }
     }
