@@ -77,7 +77,7 @@ def summary(results):
     for r in results:
         groups.setdefault((r["friction_model"], r["friction_scale"]), []).append(r)
     print("| drives | friction | runs (failed/faulted/aborted) | calibrated / floor at 0 / 45 / 90 N: mean (max) "
-          "| still after a move [s]: mean (max) | tracking RMS calibrated [mrad]: mean (max) "
+          "| still after a move arriving at 0 N / with 90 N [s]: mean (max) | tracking RMS calibrated [mrad]: mean (max) "
           "| gravity RMS J2 / J3 / J5 [N·m], nominal → identified |")
     print("|---|---|---|---|---|---|---|")
     for (model, scale), rs in sorted(groups.items()):
@@ -89,7 +89,8 @@ def summary(results):
         for k in range(3):
             v = [r["loads"][k]["calibrated_mean_mm"] / r["floor_mm"] for r in ok]
             ratios.append(f"{statistics.mean(v):.2f} ({max(v):.2f})" if v else "–")
-        still = [r["move_settle_mean_s"][1] for r in ok]
+        still0 = [r["move_settle_mean_s"][0] for r in ok]
+        still90 = [r["move_settle_mean_s"][1] for r in ok]
         track = [r["tracking"]["calibrated_rms_mrad"] for r in ok]
         ids = [r["identification"] for r in ok if r.get("identification")]
         grav = "–"
@@ -98,7 +99,7 @@ def summary(results):
             grav = " / ".join(f"{g(0, j):.2f} → {g(1, j):.2f}" for j in (1, 2, 4))
         fmt = lambda v: f"{statistics.mean(v):.2f} ({max(v):.2f})" if v else "–"
         print(f"| {model} | ×{scale:g} | {len(rs)} ({failed}/{faulted}/{aborted}) | {' / '.join(ratios)} "
-              f"| {fmt(still)} | {fmt(track)} | {grav} |")
+              f"| {fmt(still0)} / {fmt(still90)} | {fmt(track)} | {grav} |")
 
 
 def main():

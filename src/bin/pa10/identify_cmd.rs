@@ -24,7 +24,8 @@ pub struct IdentifyArgs {
     /// Where to write the model with the identified bodies and friction (YAML).
     #[arg(long, value_name = "FILE")]
     out: PathBuf,
-    /// Waypoints of the sweep tour (each segment driven there and back, at two speeds).
+    /// Waypoints of the sweep tour (each segment driven there and back at one speed, the
+    /// segments at the speeds in turn).
     #[arg(long, default_value_t = 10)]
     waypoints: usize,
     /// The two sweep speeds of the fastest joint, rad/s.

@@ -82,9 +82,13 @@ pub fn check_speeds(speeds: &[f64]) -> Result<(), SweepError> {
     Ok(())
 }
 
-/// Drives `tour` (joint angles, rad) out and back — every segment both ways, the way out of
-/// segment i at `speeds[i]`, back at `speeds[i + 1]`, cyclically (rad/s of the fastest joint)
-/// — and polls the status every [`POLL_S`] while the arm moves.
+/// Drives `tour` (joint angles, rad) out and back — every segment both ways at the same
+/// speed, segment i at `speeds[i]`, cyclically (rad/s of the fastest joint) — and polls the
+/// status every [`POLL_S`] while the arm moves. The same speed both ways puts every
+/// configuration in the data at +q̇ and −q̇: friction, whatever its shape, is odd in q̇ and
+/// gravity even, so a friction law the fit does not know (a creeping drive's, one rising with
+/// speed) cannot leak into the identified gravity; the speed levels across segments separate
+/// Coulomb from viscous friction.
 pub fn gather<S: Session + ?Sized>(
     s: &mut S,
     tour: &[[f64; 6]],
@@ -96,7 +100,7 @@ pub fn gather<S: Session + ?Sized>(
     let out = (0..n).map(|i| (tour[i], tour[i + 1], speeds[i % speeds.len()]));
     let back = (0..n)
         .rev()
-        .map(|i| (tour[i + 1], tour[i], speeds[(i + 1) % speeds.len()]));
+        .map(|i| (tour[i + 1], tour[i], speeds[i % speeds.len()]));
     for (a, b, speed) in out.chain(back) {
         let Some(seg) = identify::sweep_segment(&a, &b, speed, SWEEP_ACCEL) else {
             continue;
