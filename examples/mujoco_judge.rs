@@ -17,7 +17,7 @@
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
-//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D]`
+//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--check-ratio R]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
 //! lab: `pa10 identify` first, `torque_source: estimated`, `hold_damping: 1`. Needs `pip install
 //! mujoco` (the Python interpreter `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another
@@ -71,6 +71,8 @@ struct Opts {
     hold_deadband: f64,
     /// The daemon's `control.hold_damping`.
     hold_damping: f64,
+    /// `--check`'s bound on calibrated mean / floor (default 2 quick, 1.3 full).
+    check_ratio: Option<f64>,
 }
 
 fn opts() -> Result<Opts> {
@@ -86,6 +88,7 @@ fn opts() -> Result<Opts> {
         identify: true,
         hold_deadband: 0.0,
         hold_damping: 1.0,
+        check_ratio: None,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -133,6 +136,16 @@ fn opts() -> Result<Opts> {
                     .parse()
                     .context("--hold-damping: a number")?;
             }
+            "--check-ratio" => {
+                let r: f64 = value("--check-ratio")?
+                    .parse()
+                    .context("--check-ratio: a number")?;
+                ensure!(
+                    r >= 1.0 && r.is_finite(),
+                    "--check-ratio: at least 1, got {r}"
+                );
+                o.check_ratio = Some(r);
+            }
             "--current-filter-hz" => {
                 let f: f64 = value("--current-filter-hz")?
                     .parse()
@@ -141,7 +154,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D)"
+                "unknown argument {other} (--json, --quick, --check, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R)"
             ),
         }
     }
@@ -238,7 +251,8 @@ fn main() -> Result<()> {
         print(&out);
     }
     if o.check {
-        let bad = check(&out, if o.quick { 2.0 } else { 1.3 });
+        let ratio = o.check_ratio.unwrap_or(if o.quick { 2.0 } else { 1.3 });
+        let bad = check(&out, ratio);
         for b in &bad {
             eprintln!("check failed: {b}");
         }

@@ -55,7 +55,8 @@ def run(judge, seed, model, friction, quick, extra):
         return dict(key, failed=f"no answer in {RUN_TIMEOUT_S} s")
     lines = [l for l in p.stdout.splitlines() if l.startswith("{")]
     if p.returncode != 0 or not lines:
-        return dict(key, failed=(p.stderr.strip().splitlines() or ["(no output)"])[-1])
+        said = [l for l in p.stderr.splitlines() if l.startswith(("check failed", "Error"))]
+        return dict(key, failed="; ".join(said) or (p.stderr.strip().splitlines() or ["(no output)"])[-1])
     out = json.loads(lines[-1])
     return dict(out, **key)
 
