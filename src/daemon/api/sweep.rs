@@ -82,6 +82,21 @@ pub fn check_speeds(speeds: &[f64]) -> Result<(), SweepError> {
     Ok(())
 }
 
+/// The sweeps of [`gather`] in order, `(from, to, speed)` (rad, rad, rad/s): the tour out,
+/// segment i at `speeds[i % len]`, then back the same way at the same speeds.
+pub fn schedule(tour: &[[f64; 6]], speeds: &[f64]) -> Vec<([f64; 6], [f64; 6], f64)> {
+    let n = if speeds.is_empty() {
+        0
+    } else {
+        tour.len().saturating_sub(1)
+    };
+    let out = (0..n).map(|i| (tour[i], tour[i + 1], speeds[i % speeds.len()]));
+    let back = (0..n)
+        .rev()
+        .map(|i| (tour[i + 1], tour[i], speeds[i % speeds.len()]));
+    out.chain(back).collect()
+}
+
 /// Drives `tour` (joint angles, rad) out and back — every segment both ways at the same
 /// speed, segment i at `speeds[i]`, cyclically (rad/s of the fastest joint) — and polls the
 /// status every [`POLL_S`] while the arm moves. The same speed both ways puts every
@@ -96,12 +111,7 @@ pub fn gather<S: Session + ?Sized>(
 ) -> Result<Vec<Poll>, SweepError> {
     check_speeds(speeds)?;
     let mut polls = Vec::new();
-    let n = tour.len().saturating_sub(1);
-    let out = (0..n).map(|i| (tour[i], tour[i + 1], speeds[i % speeds.len()]));
-    let back = (0..n)
-        .rev()
-        .map(|i| (tour[i + 1], tour[i], speeds[i % speeds.len()]));
-    for (a, b, speed) in out.chain(back) {
+    for (a, b, speed) in schedule(tour, speeds) {
         let Some(seg) = identify::sweep_segment(&a, &b, speed, SWEEP_ACCEL) else {
             continue;
         };
@@ -141,4 +151,31 @@ pub fn gather<S: Session + ?Sized>(
         }
     }
     Ok(polls)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_segment_is_swept_both_ways_at_one_speed_and_the_speeds_alternate() {
+        let tour: Vec<[f64; 6]> = (0..4).map(|k| [0.1 * k as f64; 6]).collect();
+        let s = schedule(&tour, &[0.15, 0.3]);
+        assert_eq!(s.len(), 6);
+        for (a, b, v) in &s[..3] {
+            let back = s[3..]
+                .iter()
+                .find(|(c, d, _)| c == b && d == a)
+                .expect("swept back");
+            assert_eq!(back.2, *v, "the same speed both ways");
+        }
+        assert_eq!([s[0].2, s[1].2, s[2].2], [0.15, 0.3, 0.15]);
+        assert!(schedule(&tour[..1], &[0.1]).is_empty());
+        assert!(matches!(check_speeds(&[]), Err(SweepError::Speeds(_))));
+        assert!(matches!(
+            check_speeds(&[0.2, 1.5]),
+            Err(SweepError::Speeds(_))
+        ));
+        assert!(check_speeds(&[0.2, 1.0]).is_ok());
+    }
 }
