@@ -312,6 +312,19 @@ pub enum ConfigError {
     },
 }
 
+/// `value` within `0…max` (`unit` appended to the bound in the refusal), or the refusal naming
+/// `key`.
+fn within(key: &str, value: f64, max: f64, unit: &str) -> Result<(), ConfigError> {
+    if value.is_finite() && (0.0..=max).contains(&value) {
+        Ok(())
+    } else {
+        Err(invalid(
+            key,
+            format!("must be within 0…{max}{unit}, got {value}"),
+        ))
+    }
+}
+
 fn invalid(key: impl Into<String>, reason: impl Into<String>) -> ConfigError {
     ConfigError::Invalid {
         key: key.into(),
@@ -440,28 +453,18 @@ impl Config {
                 ),
             ));
         }
-        if !(c.control.hold_deadband.is_finite()
-            && (0.0..=MAX_HOLD_DEADBAND).contains(&c.control.hold_deadband))
-        {
-            return Err(invalid(
-                "control.hold_deadband",
-                format!(
-                    "must be within 0…{MAX_HOLD_DEADBAND} rad, got {}",
-                    c.control.hold_deadband
-                ),
-            ));
-        }
-        if !(c.control.hold_damping.is_finite()
-            && (0.0..=MAX_HOLD_DAMPING).contains(&c.control.hold_damping))
-        {
-            return Err(invalid(
-                "control.hold_damping",
-                format!(
-                    "must be within 0…{MAX_HOLD_DAMPING}, got {}",
-                    c.control.hold_damping
-                ),
-            ));
-        }
+        within(
+            "control.hold_deadband",
+            c.control.hold_deadband,
+            MAX_HOLD_DEADBAND,
+            " rad",
+        )?;
+        within(
+            "control.hold_damping",
+            c.control.hold_damping,
+            MAX_HOLD_DAMPING,
+            "",
+        )?;
         if !(c.control.current_filter_hz.is_finite()
             && c.control.current_filter_hz > 0.0
             && c.control.current_filter_hz < c.control.rate_hz / 2.0)
