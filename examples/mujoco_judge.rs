@@ -17,7 +17,7 @@
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
-//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--check-ratio R]`
+//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--check-ratio R] [--trace FILE]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
 //! lab: `pa10 identify` first, `torque_source: estimated`, `hold_damping: 1`. Needs `pip install
 //! mujoco` (the Python interpreter `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another
@@ -73,6 +73,8 @@ struct Opts {
     hold_damping: f64,
     /// `--check`'s bound on calibrated mean / floor (default 2 quick, 1.3 full).
     check_ratio: Option<f64>,
+    /// `--trace FILE`: every move's and settle's samples as CSV (for finding what rings).
+    trace: Option<PathBuf>,
 }
 
 fn opts() -> Result<Opts> {
@@ -89,6 +91,7 @@ fn opts() -> Result<Opts> {
         hold_deadband: 0.0,
         hold_damping: 1.0,
         check_ratio: None,
+        trace: None,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -136,6 +139,7 @@ fn opts() -> Result<Opts> {
                     .parse()
                     .context("--hold-damping: a number")?;
             }
+            "--trace" => o.trace = Some(PathBuf::from(value("--trace")?)),
             "--check-ratio" => {
                 let r: f64 = value("--check-ratio")?
                     .parse()
@@ -154,7 +158,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R)"
+                "unknown argument {other} (--json, --quick, --check, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
             ),
         }
     }
@@ -239,6 +243,16 @@ struct Identification {
 
 fn main() -> Result<()> {
     let o = opts()?;
+    if let Some(path) = &o.trace {
+        let f =
+            std::fs::File::create(path).with_context(|| format!("--trace {}", path.display()))?;
+        let mut w = std::io::BufWriter::new(f);
+        use std::io::Write;
+        writeln!(w, "# {TRACE_HEADER}")?;
+        if let Ok(mut g) = TRACE.lock() {
+            *g = Some(w);
+        }
+    }
     let t0 = Instant::now();
     let dir = std::env::temp_dir().join(format!("pa10-mujoco-judge-{}", std::process::id()));
     std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -392,11 +406,20 @@ fn status(ls: &Lockstep) -> Result<Status> {
 /// time from the end of the move until still, s.
 fn move_settle(ls: &mut Lockstep, req: ApiRequest) -> Result<f64> {
     ask(ls, req)?;
-    let end = ls.now() + 60.0;
+    let t0 = ls.now();
+    let end = t0 + 60.0;
     loop {
         ls.run_for(0.01);
         plant_ok(ls)?;
         let s = status(ls)?;
+        trace_row(
+            ls,
+            "move",
+            ls.now() - t0,
+            &s.q_motor,
+            &ls.servo.link_state().0,
+            &s,
+        );
         match s.state {
             State::Holding => break,
             State::Fault => bail!("fault: {}", s.fault.unwrap_or_default()),
@@ -425,6 +448,7 @@ fn settle(ls: &mut Lockstep) -> Result<f64> {
             bail!("fault: {}", st.fault.unwrap_or_default());
         }
         let now = (st.q_motor, ls.servo.link_state().0);
+        trace_row(ls, "still", ls.now() - t, &now.0, &now.1, &st);
         let step =
             |a: &[f64; 6], b: &[f64; 6]| (0..6).map(|j| (a[j] - b[j]).abs()).fold(0.0, f64::max);
         let quiet = step(&now.0, &last.0) <= 1.5 * COUNT && step(&now.1, &last.1) <= LINK_STILL;
@@ -433,6 +457,34 @@ fn settle(ls: &mut Lockstep) -> Result<f64> {
         let waited = ls.now() - t;
         if (waited >= 0.1 && still >= 3) || waited >= 5.0 {
             return Ok(waited);
+        }
+    }
+}
+
+/// `--trace`'s file: one CSV row per 10 ms of every move and settle ([`TRACE_HEADER`]), and
+/// a row naming each load change.
+const TRACE_HEADER: &str = "phase,t_s,motor1..6_rad,link1..6_rad (MuJoCo),setpoint1..6_rad,target1..6_rad (the daemon's motor target)";
+
+static TRACE: std::sync::Mutex<Option<std::io::BufWriter<std::fs::File>>> =
+    std::sync::Mutex::new(None);
+
+fn trace_row(ls: &Lockstep, phase: &str, t: f64, motor: &[f64; 6], link: &[f64; 6], st: &Status) {
+    use std::io::Write;
+    let target = pa10::daemon::runtime::lock(&ls.core)
+        .controller()
+        .map(|c| c.output().target)
+        .unwrap_or_default();
+    if let Ok(mut g) = TRACE.lock() {
+        if let Some(w) = g.as_mut() {
+            let cells: Vec<String> = std::iter::once(t)
+                .chain(motor.iter().copied())
+                .chain(link.iter().copied())
+                .chain(st.setpoint.iter().copied())
+                .chain(target.iter().copied())
+                .map(|v| format!("{v:.9}"))
+                .collect();
+            let _ = writeln!(w, "{phase},{}", cells.join(","));
+            let _ = w.flush();
         }
     }
 }
@@ -475,6 +527,14 @@ fn recover(ls: &mut Lockstep) -> Result<Option<String>> {
 /// Hangs `newtons` on the arm, tells the daemon, waits until it is still; how long that took, s.
 fn set_load(ls: &mut Lockstep, newtons: f64) -> Result<f64> {
     ls.servo.set_load(newtons);
+    trace_row(
+        ls,
+        &format!("load {newtons}"),
+        0.0,
+        &[0.0; 6],
+        &[0.0; 6],
+        &status(ls)?,
+    );
     ask(
         ls,
         ApiRequest::SetPayload {

@@ -479,4 +479,49 @@ mod tests {
             "{t:?}"
         );
     }
+
+    #[test]
+    fn a_model_loaded_while_holding_is_reached_by_a_glide_not_a_step() {
+        use crate::model::Stiffness;
+        // holding with model torques on the rigid nominal; the new model has a J2 spring
+        let mut p = params();
+        p.torque_source = TorqueSource::Model;
+        let mut c = Controller::new(Model::nominal(), p, &state(Q0, [0.0; 6], 0.0));
+        let mut s = state(Q0, [0.0; 6], 0.0);
+        let mut k = 0;
+        let mut cycle = |c: &mut Controller, s: &mut JointState| {
+            k += 1;
+            s.stamp_s = k as f64 * PERIOD;
+            c.step(s.stamp_s, Some(s));
+            c.output().target
+        };
+        let before = cycle(&mut c, &mut s);
+        let mut d = Model::nominal().data().clone();
+        d.stiffness[1] = Some(Stiffness {
+            klin: 2.0e4,
+            kcub: 0.0,
+        });
+        c.load_model(Model::new(d).expect("a valid model"))
+            .expect("accepted while holding");
+        let mut last = before;
+        let mut biggest = 0.0f64;
+        let n = (GLIDE_S / PERIOD).round() as usize + 2;
+        for _ in 0..n {
+            let t = cycle(&mut c, &mut s);
+            biggest = biggest.max((t[1] - last[1]).abs());
+            last = t;
+        }
+        let goal = c.compensated_target(&c.output().tau).expect("finite");
+        let change = goal[1] - before[1];
+        assert!(
+            change.abs() > 1e-3,
+            "the spring moves J2's target: {change}"
+        );
+        assert!((last[1] - goal[1]).abs() < 1e-12, "reached after the glide");
+        // at most the cycloid's peak rate (twice the mean) each cycle: no step
+        assert!(
+            biggest <= 2.0 * change.abs() * PERIOD / GLIDE_S * 1.001,
+            "{biggest}"
+        );
+    }
 }

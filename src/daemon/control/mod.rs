@@ -37,8 +37,11 @@ pub use params::*;
 
 mod cycle;
 pub mod estimate;
+mod glide;
 mod params;
 mod stream;
+
+pub use glide::GLIDE_S;
 
 /// Corner frequency of the motor speed estimate (resolver differences) the holding loop's
 /// damping uses, Hz: one resolver count a cycle (7.7 µrad at 500 Hz, 3.8 mrad/s) is a
@@ -68,8 +71,10 @@ pub struct Controller {
     trajectory: TrajectoryStatus,
     /// Why the last stream ended, for `status`.
     stream_end: Option<&'static str>,
-    /// What the last cycle computed.
+    /// What the last cycle computed (before the first: the motors where they are).
     out: CycleOutput,
+    /// Step 4c: a newly loaded model's target reached smoothly.
+    glide: glide::Glide,
 }
 
 /// What one cycle computed (for recordings): torques used, motor target, speeds sent.
@@ -113,7 +118,11 @@ impl Controller {
             scaling_target: 1.0,
             trajectory: TrajectoryStatus::default(),
             stream_end: None,
-            out: CycleOutput::default(),
+            out: CycleOutput {
+                target: first.q_motor,
+                ..CycleOutput::default()
+            },
+            glide: glide::Glide::default(),
         }
     }
 
@@ -236,7 +245,8 @@ impl Controller {
 
     /// Replaces the model between moves (hot reload); refused while moving, and when a
     /// configured speed limit exceeds the new model's joint velocity limit. Its position
-    /// limits replace the old model's.
+    /// limits replace the old model's. The motors glide to the new model's target over
+    /// [`GLIDE_S`] (`glide.rs`) instead of stepping there.
     pub fn load_model(&mut self, model: impl Into<Arc<Model>>) -> Result<(), CommandError> {
         if matches!(
             self.activity,
@@ -257,6 +267,7 @@ impl Controller {
         self.p.limits.lower = ml.lower;
         self.p.limits.upper = ml.upper;
         self.model = model;
+        self.glide.start();
         Ok(())
     }
 
@@ -308,6 +319,9 @@ impl Controller {
                 qd: [0.0; 6],
             };
             self.activity = Activity::Holding;
+            // from where the motors are to the compensation's target, without a step
+            self.out.target = s.q_motor;
+            self.glide.start();
         }
     }
 
@@ -347,7 +361,7 @@ impl Controller {
         let tau = self.torque_estimate(&state);
         self.note_directions();
         let target = match self.compensated_target(&tau) {
-            Ok(t) => t,
+            Ok(t) => self.glide.apply(&t, &self.out.target, self.p.period_s),
             Err(f) => return self.fault(f),
         };
         let (speeds, link) = match self.position_loop(&state, &target) {
