@@ -470,23 +470,21 @@ static TRACE: std::sync::Mutex<Option<std::io::BufWriter<std::fs::File>>> =
 
 fn trace_row(ls: &Lockstep, phase: &str, t: f64, motor: &[f64; 6], link: &[f64; 6], st: &Status) {
     use std::io::Write;
+    let Ok(mut g) = TRACE.lock() else { return };
+    let Some(w) = g.as_mut() else { return };
     let target = pa10::daemon::runtime::lock(&ls.core)
         .controller()
         .map(|c| c.output().target)
         .unwrap_or_default();
-    if let Ok(mut g) = TRACE.lock() {
-        if let Some(w) = g.as_mut() {
-            let cells: Vec<String> = std::iter::once(t)
-                .chain(motor.iter().copied())
-                .chain(link.iter().copied())
-                .chain(st.setpoint.iter().copied())
-                .chain(target.iter().copied())
-                .map(|v| format!("{v:.9}"))
-                .collect();
-            let _ = writeln!(w, "{phase},{}", cells.join(","));
-            let _ = w.flush();
-        }
-    }
+    let cells: Vec<String> = std::iter::once(t)
+        .chain(motor.iter().copied())
+        .chain(link.iter().copied())
+        .chain(st.setpoint.iter().copied())
+        .chain(target.iter().copied())
+        .map(|v| format!("{v:.9}"))
+        .collect();
+    let _ = writeln!(w, "{phase},{}", cells.join(","));
+    let _ = w.flush();
 }
 
 /// After a run that may have faulted: `reset` when faulted, then until the daemon is ready;
