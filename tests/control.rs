@@ -22,6 +22,7 @@ fn limits() -> Limits {
         upper: m.limits().upper,
         speed: VMAX,
         acceleration: AMAX,
+        min_ramp_s: 0.0,
     }
 }
 

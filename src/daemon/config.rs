@@ -142,6 +142,10 @@ pub struct LimitsConfig {
     pub speed: [f64; 6],
     /// Acceleration limits, rad/s².
     pub acceleration: [f64; 6],
+    /// Shortest acceleration ramp of a move, s (0…[`MAX_MIN_RAMP_S`], default 0: none): at
+    /// least the period of the loaded arm's lowest mode, so small moves do not ring it.
+    #[serde(default)]
+    pub min_ramp_s: f64,
     /// Largest tolerated |setpoint − measured| per joint, rad.
     pub following_error: f64,
     /// Feedback older than this stops the arm, ms.
@@ -254,6 +258,9 @@ pub struct Config {
 
 /// The widest `control.hold_deadband`, rad (≈ 1 mm at the tool).
 pub const MAX_HOLD_DEADBAND: f64 = 1e-3;
+
+/// The longest `limits.min_ramp_s`, s.
+pub const MAX_MIN_RAMP_S: f64 = 2.0;
 
 /// The largest `control.hold_damping` (dimensionless).
 pub const MAX_HOLD_DAMPING: f64 = 10.0;
@@ -460,6 +467,12 @@ impl Config {
             " rad",
         )?;
         within(
+            "limits.min_ramp_s",
+            c.limits.min_ramp_s,
+            MAX_MIN_RAMP_S,
+            " s",
+        )?;
+        within(
             "control.hold_damping",
             c.control.hold_damping,
             MAX_HOLD_DAMPING,
@@ -638,6 +651,7 @@ impl Config {
                 upper: model.limits().upper,
                 speed: limits.speed,
                 acceleration: limits.acceleration,
+                min_ramp_s: limits.min_ramp_s,
             },
             following_error: limits.following_error,
             feedback_timeout_s: limits.feedback_timeout_ms * 1e-3,

@@ -43,6 +43,10 @@ pub struct Limits {
     pub speed: [f64; 6],
     /// Acceleration limits, rad/s².
     pub acceleration: [f64; 6],
+    /// Shortest acceleration (and deceleration) ramp of a move, s: a small move is slowed
+    /// down until its ramps last this long, so its ends do not ring the loaded arm's lowest
+    /// mode (0: no minimum).
+    pub min_ramp_s: f64,
 }
 
 impl Limits {

@@ -119,6 +119,16 @@ fn every_error_names_its_key() {
         err(&y.replace("feedback_timeout_ms: 20", "feedback_timeout_ms: 1"))
             .contains("at least two cycles")
     );
+    for bad in ["-0.1", "2.5", ".nan"] {
+        let text = y.replace("min_ramp_s: 0.5", &format!("min_ramp_s: {bad}"));
+        assert!(err(&text).contains("`limits.min_ramp_s`"), "{bad}");
+    }
+    let text = y.replace("min_ramp_s: 0.5", "min_ramp_s: 0.25");
+    let s = Config::parse(&text, "t.yaml")
+        .unwrap()
+        .validate(&root())
+        .unwrap();
+    assert_eq!(s.control.limits.min_ramp_s, 0.25);
     for bad in ["-0.00001", "0.01", ".nan"] {
         let text = y.replace(
             "current_filter_hz: 20.0",

@@ -330,6 +330,7 @@ pub(crate) fn test_params() -> LoopParams {
             upper: m.limits().upper,
             speed: [1.0; 6],
             acceleration: [2.0; 6],
+            min_ramp_s: 0.0,
         },
         following_error: 0.01,
         feedback_timeout_s: 0.02,

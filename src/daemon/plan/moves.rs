@@ -26,8 +26,9 @@ pub struct Profile {
 }
 
 impl Profile {
-    /// The fastest profile with rate ≤ `v_max` and acceleration ≤ `a_max` (both > 0).
-    pub fn new(v_max: f64, a_max: f64) -> Self {
+    /// The fastest profile with rate ≤ `v_max` and acceleration ≤ `a_max` (both > 0) whose
+    /// ramps last at least `min_ramp_s` (s, ≥ 0).
+    pub fn new(v_max: f64, a_max: f64, min_ramp_s: f64) -> Self {
         // raised-cosine ramp: peak acceleration = 2·v/ta; distance of one ramp = v·ta/2
         let mut v = v_max;
         let mut ta = 2.0 * v / a_max;
@@ -35,6 +36,11 @@ impl Profile {
             // no room to cruise: two ramps cover the unit distance
             v = (a_max / 2.0).sqrt();
             ta = 2.0 * v / a_max;
+        }
+        if ta < min_ramp_s {
+            // slower ramps (a lower acceleration), and a lower rate if they leave no cruise
+            ta = min_ramp_s;
+            v = v.min(1.0 / ta);
         }
         let tc = ((1.0 - v * ta) / v).max(0.0);
         Self { v, ta, tc }
@@ -180,7 +186,8 @@ fn check_limits(lim: &Limits, q: &[f64; 6]) -> Result<(), MoveError> {
 
 /// Profile rate/acceleration so that a path with joint derivatives up to `dq_ds` (rad per
 /// unit s) and `d2q_ds2` respects `v_max` and `a_max` (rad/s, rad/s²).
-fn timing(dq_ds: &[f64; 6], d2q_ds2: &[f64; 6], v_max: &[f64; 6], a_max: &[f64; 6]) -> Profile {
+fn timing(dq_ds: &[f64; 6], d2q_ds2: &[f64; 6], lim: &Limits) -> Profile {
+    let (v_max, a_max) = (&lim.speed, &lim.acceleration);
     let mut v = f64::INFINITY;
     let mut a = f64::INFINITY;
     for j in 0..6 {
@@ -198,7 +205,7 @@ fn timing(dq_ds: &[f64; 6], d2q_ds2: &[f64; 6], v_max: &[f64; 6], a_max: &[f64; 
         a = 1.0;
     }
     // leave half the acceleration budget for the curvature term
-    Profile::new(v, 0.5 * a.min(1e6))
+    Profile::new(v, 0.5 * a.min(1e6), lim.min_ramp_s)
 }
 
 impl Move {
@@ -212,7 +219,7 @@ impl Move {
         Ok(Move::Joints {
             from,
             to,
-            profile: timing(&d, &[0.0; 6], &lim.speed, &lim.acceleration),
+            profile: timing(&d, &[0.0; 6], lim),
         })
     }
 
@@ -259,7 +266,7 @@ impl Move {
             from,
             to,
             q_start,
-            profile: timing(&d1, &d2, &lim.speed, &lim.acceleration),
+            profile: timing(&d1, &d2, lim),
         })
     }
 
@@ -327,13 +334,14 @@ mod tests {
             upper: m.limits().upper,
             speed,
             acceleration,
+            min_ramp_s: 0.0,
         }
     }
 
     #[test]
     fn the_profile_is_smooth_bounded_and_reaches_one() {
         for (v, a) in [(1.0, 2.0), (0.2, 5.0), (5.0, 0.5)] {
-            let p = Profile::new(v, a);
+            let p = Profile::new(v, a, 0.0);
             let n = 20_000;
             let dt = p.duration() / n as f64;
             let (mut vmax, mut amax, mut prev_a) = (0.0f64, 0.0f64, 0.0f64);
@@ -359,6 +367,43 @@ mod tests {
                 / 10_000.0;
             assert!((num - p.sample(mid).0).abs() < 1e-6);
         }
+    }
+
+    #[test]
+    fn a_minimum_ramp_slows_short_moves_only() {
+        // a short move: without a minimum its ramps would last sqrt(2/a) = 0.063 s
+        let p = Profile::new(50.0, 500.0, 0.4);
+        assert!((p.duration() - 0.8).abs() < 1e-12, "{}", p.duration());
+        assert!((p.sample(p.duration()).0 - 1.0).abs() < 1e-12);
+        let peak = (0..=1000)
+            .map(|k| p.sample(k as f64 * 0.8e-3).2.abs())
+            .fold(0.0, f64::max);
+        assert!(
+            peak <= 500.0 && (peak - 2.0 / 0.4 / 0.4).abs() < 1e-3,
+            "{peak}"
+        );
+        // a cruise with ramps shorter than the minimum: the ramps stretch, the rate stays
+        let p = Profile::new(0.5, 10.0, 0.4);
+        assert_eq!(p.ta, 0.4);
+        assert_eq!(p.v, 0.5);
+        assert!((p.sample(p.duration()).0 - 1.0).abs() < 1e-12);
+        // long ramps already: unchanged
+        assert_eq!(Profile::new(0.5, 1.0, 0.4), Profile::new(0.5, 1.0, 0.0));
+        // through the limits: a 1 mrad joint move takes at least two ramps
+        let m = Model::nominal();
+        let mut lim = limits([0.5; 6], [1.0; 6]);
+        let from = [0.0, 0.3, 1.2, 0.0, 0.8, 0.0];
+        let mut to = from;
+        to[1] += 1e-3;
+        let quick = Move::joints(from, to, &lim).unwrap().duration();
+        lim.min_ramp_s = 0.5;
+        let mv = Move::joints(from, to, &lim).unwrap();
+        assert!(
+            quick < 0.2 && (mv.duration() - 1.0).abs() < 1e-12,
+            "{quick}"
+        );
+        let end = mv.sample(&m, mv.duration(), &from).unwrap();
+        assert!((end.q[1] - to[1]).abs() < 1e-15);
     }
 
     #[test]

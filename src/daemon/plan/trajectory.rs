@@ -438,6 +438,7 @@ mod tests {
         upper: [3.0; 6],
         speed: [1.0; 6],
         acceleration: [2.0; 6],
+        min_ramp_s: 0.0,
     };
 
     fn at(q: [f64; 6], t: f64) -> TrajectoryPoint {
