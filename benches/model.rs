@@ -95,6 +95,7 @@ fn bench(c: &mut Criterion) {
             upper: [f64::INFINITY; 6],
             speed: [0.5, 0.5, 1.0, 2.0, 2.0, 2.0],
             acceleration: [1.0, 1.0, 2.0, 4.0, 4.0, 4.0],
+            min_ramp_s: 0.0,
         },
         following_error: 0.05,
         feedback_timeout_s: 1e9,
