@@ -260,6 +260,20 @@ impl Effect {
         }
     }
 
+    /// The joint (zero-based) whose *angle* the effect is a function of, for the kinds that
+    /// are (transmission error, eccentricity, gear ratio, backlash, the generic basis): such
+    /// an effect is seen only where the campaign turns that joint.
+    pub fn angle_joint(&self) -> Option<usize> {
+        match self.kind {
+            Kind::TransmissionError
+            | Kind::EncoderEccentricity
+            | Kind::GearRatioError
+            | Kind::Backlash => self.target,
+            Kind::Generic => self.target.map(|t| t % 6),
+            _ => None,
+        }
+    }
+
     /// `name[J3]`-style label.
     pub fn label(&self) -> String {
         match (self.kind, self.target) {

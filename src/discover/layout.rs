@@ -36,6 +36,23 @@ impl Layout {
             .sum();
         (n as f64).ln()
     }
+
+    /// How far the training configurations turn each joint: the range (max − min) of the
+    /// configurations' mean resolver readings, rad. Means, so that a joint held still does
+    /// not seem to move by its reading noise.
+    pub(super) fn spans(&self) -> [f64; 6] {
+        let mut lo = [f64::INFINITY; 6];
+        let mut hi = [f64::NEG_INFINITY; 6];
+        for b in self.blocks.iter().filter(|b| b.train && !b.rows.is_empty()) {
+            for j in 0..6 {
+                let mean =
+                    b.rows.iter().map(|&i| self.obs[i].q[j]).sum::<f64>() / b.rows.len() as f64;
+                lo[j] = lo[j].min(mean);
+                hi[j] = hi[j].max(mean);
+            }
+        }
+        std::array::from_fn(|j| (hi[j] - lo[j]).max(0.0))
+    }
 }
 
 pub(super) fn tau_of(

@@ -59,9 +59,43 @@ pub const GAP_CLOSED: f64 = 1.25;
 /// resolver's specified σ is reported as lack of fit that repeats per configuration.
 pub const REPEATABLE_EXCESS: f64 = 2.0;
 
+/// A joint whose training configurations span less than this (rad, 0.57°) is *still* on
+/// the campaign: an effect of its angle (transmission error, eccentricity, gear ratio,
+/// backlash, the generic basis) cannot be seen there, only its readings' noise, which such a
+/// candidate would "explain" by ignoring the readings (issue #41: a J6 held at 0 ± 0.6 mrad
+/// scored Δχ² ≈ 600 that way). Its candidates are reported not identifiable, never tried.
+pub const STILL_SPAN_RAD: f64 = 0.01;
+
+/// A named effect's estimate must differ from zero: the Wald test of its parameters at the
+/// refit, p below this (one parameter: |estimate| ≥ 2σ).
+pub const NONZERO_P: f64 = 0.0455;
+
 /// Candidates a step compares again at their nonlinear refit when the linearised held-out
 /// comparison fails (the strongest first).
 const NONLINEAR_RETRIES: usize = 1;
+
+/// The Wald statistic of the last `k` slots of `slots` at the settled fit `s` (their
+/// estimates over their covariance, with the prior and the dispersion of the final report),
+/// and `k`.
+fn wald_of_last(
+    s: &complete::Settled,
+    slots: &[Slot],
+    prior: &fit::Prior,
+    k: usize,
+) -> (f64, usize) {
+    let n = slots.len();
+    let mut a = s.a_fit.clone();
+    let mut g_unused = DVector::zeros(n);
+    prior.add_to(slots, &s.cur.state, &mut a, &mut g_unused, true);
+    let cov = fit::pinv(&a) * s.lof.between.ratio.min(s.lof.within.ratio).max(1.0);
+    let idx: Vec<usize> = (n - k..n).collect();
+    let c = DMatrix::from_fn(k, k, |i, j| cov[(idx[i], idx[j])]);
+    let theta = DVector::from_fn(k, |i, _| {
+        s.cur.state.get(slots[idx[i]]) / slots[idx[i]].scale()
+    });
+    let w = (theta.transpose() * fit::pinv(&c) * &theta)[(0, 0)];
+    (w.max(0.0), k)
+}
 
 /// Runs the workflow on `data` (training) and optionally `holdout` (same instrument set-up),
 /// starting from `model`.
@@ -84,6 +118,20 @@ pub fn discover(
     let state0 = EffectState::from_model(&m0, opts.gear_ratio);
     let lay = layout(data, holdout, opts)?;
     let ln_n = lay.ln_n();
+    let spans = lay.spans();
+    // Why a candidate cannot be seen on these poses at all (a joint the campaign does not turn).
+    let unseen = |e: &Effect| {
+        e.angle_joint()
+            .filter(|&j| spans[j] < STILL_SPAN_RAD)
+            .map(|j| {
+                format!(
+                    "not identifiable from these poses: the training configurations turn J{} by {:.2} mrad only (an effect of its angle needs ≥ {:.0} mrad)",
+                    j + 1,
+                    spans[j] * 1e3,
+                    STILL_SPAN_RAD * 1e3
+                )
+            })
+    };
     let mut slots = model_slots(&m0);
     let base_slots = slots.clone();
     // Fit, re-estimate the noise model at the fit (it depends on the springs), fit again.
@@ -173,6 +221,15 @@ pub fn discover(
         for (ci, e) in cands.iter().enumerate() {
             let r = ranges[ci].clone();
             let k = r.len();
+            if let Some(why) = unseen(e) {
+                let mut score = Score::untested(e, k, 0);
+                if steps.is_empty() {
+                    not_identifiable.push(score.label.clone());
+                }
+                score.note = why;
+                scores.push((score, ci));
+                continue;
+            }
             let (ident, drop) = projected_drop(a, g, &a_bb_inv, &g_b, r);
             let mut score = Score::untested(e, k, ident);
             if ident == 0 {
@@ -576,6 +633,20 @@ pub fn discover(
                 format!(
                     "rejected after the nonlinear refit: held-out RMS {g_prev:.3} → {g2:.3} mm, paired t = {:.2}, {} of {} held-out configurations better{others}",
                     test.t, test.better, test.n
+                ),
+            );
+            rejected.push(e);
+            continue;
+        }
+        // A parameter indistinguishable from zero names nothing, whatever it moved elsewhere.
+        let (wald, k) = wald_of_last(&s2, &new_slots, &pr, e.slots().len());
+        let p_zero = stats::chi2_sf(wald, k as f64);
+        if p_zero >= NONZERO_P {
+            reject(
+                &mut steps,
+                format!(
+                    "refused: its estimate is not different from zero (Wald χ² = {wald:.2} on {k} parameter{}, p = {p_zero:.2}); what it gained came from what its refit moved elsewhere",
+                    if k == 1 { "" } else { "s" }
                 ),
             );
             rejected.push(e);

@@ -276,6 +276,11 @@ pub struct Spec {
     pub repeats: usize,
     pub family: Family,
     pub hidden: Hidden,
+    /// Validation configurations (each at 0/44/90 N): 30, or the paper's Fig. 6 design of 10.
+    pub validation_configs: usize,
+    /// J6 commanded to 0 in every configuration (the paper's campaigns never turn the tool
+    /// about its axis): no J6 effect can be seen, and none may be named.
+    pub still_j6: bool,
 }
 
 impl Spec {
@@ -288,6 +293,18 @@ impl Spec {
             repeats: 10,
             family,
             hidden: Hidden::None,
+            validation_configs: 30,
+            still_j6: false,
+        }
+    }
+
+    /// The paper's campaign with the paper's validation design: 10 novel configurations,
+    /// J6 never turned.
+    pub fn paper_validation(seed: u64, family: Family) -> Self {
+        Self {
+            validation_configs: 10,
+            still_j6: true,
+            ..Self::paper(seed, family)
         }
     }
 }
@@ -516,14 +533,25 @@ fn measure(
     (reading, tau_m, pose)
 }
 
-/// Generates the campaign `spec` and a validation set (30 other configurations × 0/44/90 N,
-/// one measurement each).
+/// Generates the campaign `spec` and a validation set (`spec.validation_configs` other
+/// configurations × 0/44/90 N, one measurement each).
 pub fn generate(spec: &Spec) -> Set {
     let mut rng = Rng::new(spec.seed);
     let robot = Robot::draw(&mut rng, spec.hidden);
     let fam = spec.family;
     let mut cal = format!("{HEADER}\n");
-    for (c, q) in configs(&mut rng, spec.configs).iter().enumerate() {
+    let still = |mut q: [f64; 6]| {
+        if spec.still_j6 {
+            q[5] = 0.0;
+        }
+        q
+    };
+    for (c, q) in configs(&mut rng, spec.configs)
+        .into_iter()
+        .map(still)
+        .enumerate()
+    {
+        let q = &q;
         let rep: [f64; 6] = std::array::from_fn(|_| fam.repeatable_rad * rng.normal());
         for &load in &spec.loads {
             for _ in 0..spec.repeats {
@@ -534,7 +562,12 @@ pub fn generate(spec: &Spec) -> Set {
     }
     let mut val = format!("{HEADER}\n");
     let (mut floor, mut n) = (0.0, 0usize);
-    for (c, q) in configs(&mut rng, 30).iter().enumerate() {
+    for (c, q) in configs(&mut rng, spec.validation_configs)
+        .into_iter()
+        .map(still)
+        .enumerate()
+    {
+        let q = &q;
         let rep: [f64; 6] = std::array::from_fn(|_| fam.repeatable_rad * rng.normal());
         for load in [0.0, 44.0, 90.0] {
             let (qr, t, p) = measure(&robot, &fam, q, &rep, load, &mut rng);
