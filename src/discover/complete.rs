@@ -110,6 +110,11 @@ pub(super) fn round(
     let (base_costs, base_gap) = (&st.heldout_costs, st.gap_mm);
     let reach = torque_reach(lay);
     let ln_n = lay.ln_n();
+    let holdout_len = if lay.holdout {
+        lay.folds.last().map_or(0, Vec::len)
+    } else {
+        0
+    };
     let cost_before = fit::cost_at(prob, &cur.state, slots, &prior_of(slots))?;
     let m = cands.len().max(1) as f64;
     let mut scored: Vec<(Score, Option<f64>)> = Vec::new();
@@ -120,6 +125,8 @@ pub(super) fn round(
         let pw = prior_of(&with);
         let mut score = Score::untested(e, 1, 1);
         let refit = fit::fit_balanced(&mut prob.clone(), &cur.state, &with, &pw).and_then(|f| {
+            // the model file's own checks: a refit it would refuse is a failed fit
+            f.state.to_model()?;
             let cost = fit::cost_at(prob, &f.state, &with, &pw)?;
             Ok((f, cost))
         });
@@ -136,11 +143,14 @@ pub(super) fn round(
             fold_eqs(prob, &lin, &lay.folds, lay.holdout).with_prior(&pw, &with, &fitted.state);
         let all: Vec<usize> = (0..with.len()).collect();
         let (costs, gap_w) = heldout(prob, &lin, &eqs_w, &lay.folds, &all);
-        let test = Paired::new(&drops(base_costs, &costs), alpha / m);
+        // judged on the holdout set alone (the last fold): only it reaches beyond the training
+        // torques; the cross-validated training configurations would dilute the test
+        let tail = |v: &[f64]| v[v.len().saturating_sub(holdout_len)..].to_vec();
+        let test = Paired::new(&drops(&tail(base_costs), &tail(&costs)), alpha / m);
         score.delta_chi2 = cost_before - cost_with;
         score.delta_bic = score.delta_chi2 - ln_n;
         score.p_adjusted = (stats::chi2_sf(score.delta_chi2.max(0.0), 1.0) * m).min(1.0);
-        score.heldout_gain = Some(test.mean * base_costs.len() as f64);
+        score.heldout_gain = Some(test.mean * test.n as f64);
         score.paired_t = Some(test.t);
         score.rank_p = Some(test.rank_p);
         score.heldout_gap_mm = Some(gap_w);

@@ -529,9 +529,14 @@ pub fn discover(
             let mut best: Option<(Problem, fit::Fitted)> = None;
             for start in [jump, st2, cur.state.clone()] {
                 let mut pb = prob.clone();
+                // a fit whose model the model file would refuse (e.g. a joint error's slope
+                // beyond 0.5: not invertible) is no start at all
                 let Ok(alt) = fit::fit_balanced(&mut pb, &start, &new_slots, &pr) else {
                     continue;
                 };
+                if alt.state.to_model().is_err() {
+                    continue;
+                }
                 match &mut best {
                     None => best = Some((pb, alt)),
                     Some((pa, refit)) => {
@@ -746,7 +751,11 @@ pub fn discover(
         train_gap_after_mm: train_rms_mm(&prob, &cur.lin.raw),
         noise_floor_mm: floor,
         heldout: if lay.holdout {
-            format!("holdout set ({} configurations)", lay.folds[0].len())
+            let holdout = lay.folds.last().map_or(0, Vec::len);
+            format!(
+                "holdout set ({holdout} configurations) and {}-fold cross-validation by configuration over the training set",
+                lay.folds.len() - 1
+            )
         } else {
             format!("{}-fold cross-validation by configuration", lay.folds.len())
         },

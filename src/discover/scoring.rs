@@ -339,22 +339,26 @@ pub(super) fn fold_eqs(
     let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
     let rows = p.white_rows(|b| b.train);
     let (a_train, g_train) = fit::normal_eq(lin, &rows, &cols);
+    // what each fold takes out of the training equations: its training configurations (a
+    // holdout fold takes out nothing)
+    let _ = holdout;
     let (a, g) = folds
         .iter()
         .map(|f| {
-            if holdout {
+            let rows: Vec<usize> = f
+                .iter()
+                .filter(|&&b| p.blocks[b].train)
+                .flat_map(|&b| {
+                    let bl = &p.blocks[b];
+                    bl.offset..bl.offset + 6 * (bl.rows.len() + 1)
+                })
+                .collect();
+            if rows.is_empty() {
                 (
                     DMatrix::zeros(cols.len(), cols.len()),
                     DVector::zeros(cols.len()),
                 )
             } else {
-                let rows: Vec<usize> = f
-                    .iter()
-                    .flat_map(|&b| {
-                        let bl = &p.blocks[b];
-                        bl.offset..bl.offset + 6 * (bl.rows.len() + 1)
-                    })
-                    .collect();
                 fit::normal_eq(lin, &rows, &cols)
             }
         })
