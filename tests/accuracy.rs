@@ -8,6 +8,7 @@ use pa10::model::Model;
 /// and the z = 0.5 m figure lands near the paper's 0.197 ± 0.096 mm.
 #[test]
 fn paper_setting_monte_carlo_and_linearised_agree_within_two_percent() {
+    let _cpu = crate::common::busy_lock();
     let cfg = McConfig {
         draws: 2_000,
         ..McConfig::paper()

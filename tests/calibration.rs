@@ -20,6 +20,7 @@ fn mean(v: &[f64]) -> f64 {
 /// worse, and the stiffness of J2 and J3 is recovered within 10 %.
 #[test]
 fn calibration_reaches_the_resolver_floor_and_recovers_stiffness() {
+    let _cpu = crate::common::busy_lock();
     let c = paper_campaign(&CampaignSpec::default()).unwrap();
     let out = report::run(
         &Model::nominal(),
@@ -122,6 +123,7 @@ fn calibration_reaches_the_resolver_floor_and_recovers_stiffness() {
 /// J2, J3 to 10 %.
 #[test]
 fn base_frame_is_recovered_when_the_resolvers_are_exact() {
+    let _cpu = crate::common::busy_lock();
     let noise = SimNoise {
         resolver_rad: 0.0,
         ..Default::default()
@@ -170,6 +172,7 @@ fn base_frame_is_recovered_when_the_resolvers_are_exact() {
 /// geometry, recovers the instrument placement exactly.
 #[test]
 fn inner_level_alone_recovers_a_known_base_on_noise_free_data() {
+    let _cpu = crate::common::busy_lock();
     let zero = SimNoise {
         position_m: 0.0,
         orientation_rad: 0.0,
@@ -225,6 +228,7 @@ fn inner_level_alone_recovers_a_known_base_on_noise_free_data() {
 /// worse than the default (ε = 0 with priors only on unidentifiable directions).
 #[test]
 fn paper_epsilon_costs_validation_accuracy() {
+    let _cpu = crate::common::busy_lock();
     let c = paper_campaign(&CampaignSpec {
         seed: 2,
         ..Default::default()
@@ -263,6 +267,7 @@ fn paper_epsilon_costs_validation_accuracy() {
 /// agrees with the accuracy module's linearised bound scale (~0.2 mm).
 #[test]
 fn calibration_is_deterministic_and_the_floor_is_sane() {
+    let _cpu = crate::common::busy_lock();
     let c = paper_campaign(&CampaignSpec {
         seed: 4,
         repeats: 3,
@@ -288,6 +293,7 @@ fn calibration_is_deterministic_and_the_floor_is_sane() {
 /// Bad options and impossible data are refused with a reason.
 #[test]
 fn bad_options_and_data_are_refused() {
+    let _cpu = crate::common::busy_lock();
     let c = paper_campaign(&CampaignSpec {
         seed: 6,
         repeats: 1,

@@ -28,6 +28,7 @@ fn f(v: &serde_json::Value) -> Vec<f64> {
 
 #[test]
 fn fk_of_the_zero_pose_prints_the_flange_at_1317_mm() {
+    let _cpu = crate::common::busy_lock();
     let j = stdout_json(&pa10(&["fk", "--json", "0", "0", "0", "0", "0", "0"]));
     let p = f(&j["position"]);
     assert!(
@@ -39,6 +40,7 @@ fn fk_of_the_zero_pose_prints_the_flange_at_1317_mm() {
 
 #[test]
 fn negative_numbers_parse_as_positionals_and_ik_inverts_fk() {
+    let _cpu = crate::common::busy_lock();
     let q = ["0.3", "-0.5", "1.1", "-0.4", "0.7", "-0.2"];
     let mut args = vec!["fk", "--json"];
     args.extend(q);
@@ -57,6 +59,7 @@ fn negative_numbers_parse_as_positionals_and_ik_inverts_fk() {
 
 #[test]
 fn fk_in_degrees_and_with_resolver_deflection() {
+    let _cpu = crate::common::busy_lock();
     let a = stdout_json(&pa10(&[
         "fk", "--json", "--deg", "0", "90", "0", "0", "0", "0",
     ]));
@@ -81,6 +84,7 @@ fn fk_in_degrees_and_with_resolver_deflection() {
 
 #[test]
 fn a_loaded_compliant_arm_sags() {
+    let _cpu = crate::common::busy_lock();
     let dir = std::env::temp_dir().join(format!("pa10-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("stiff.yaml");
@@ -116,6 +120,7 @@ fn a_loaded_compliant_arm_sags() {
 
 #[test]
 fn bad_input_gets_a_precise_error_and_a_failing_exit() {
+    let _cpu = crate::common::busy_lock();
     let o = pa10(&["ik", "0.5", "0.1", "0.6", "0", "1", "0.5", "0"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("unit quaternion"));
@@ -139,6 +144,7 @@ fn bad_input_gets_a_precise_error_and_a_failing_exit() {
 
 #[test]
 fn model_check_summarises_a_valid_file() {
+    let _cpu = crate::common::busy_lock();
     let nominal = concat!(env!("CARGO_MANIFEST_DIR"), "/config/model-nominal.yaml");
     let o = pa10(&["model", "check", nominal]);
     assert!(o.status.success());
@@ -151,6 +157,7 @@ fn model_check_summarises_a_valid_file() {
 
 #[test]
 fn the_daemon_checks_its_config() {
+    let _cpu = crate::common::busy_lock();
     let pa10d = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_pa10d"))
             .args(args)
@@ -208,6 +215,7 @@ fn the_daemon_checks_its_config() {
 
 #[test]
 fn accuracy_prints_json_writes_csv_and_plots() {
+    let _cpu = crate::common::busy_lock();
     let dir = std::env::temp_dir().join(format!("pa10-acc-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let csv = dir.join("points.csv");
@@ -272,6 +280,7 @@ fn accuracy_prints_json_writes_csv_and_plots() {
 
 #[test]
 fn accuracy_rejects_bad_settings() {
+    let _cpu = crate::common::busy_lock();
     for (args, msg) in [
         (vec!["--sigma-arcmin", "-0.5"], "σ must be finite and ≥ 0"),
         (vec!["--sigma-arcmin", "0.6,0.6"], "one value or six"),
@@ -291,6 +300,7 @@ fn accuracy_rejects_bad_settings() {
 
 #[test]
 fn sim_measure_then_calibrate_end_to_end() {
+    let _cpu = crate::common::busy_lock();
     let dir = std::env::temp_dir().join(format!("pa10-cal-{}", std::process::id()));
     let d = dir.to_str().unwrap();
     let o = pa10(&[
@@ -496,6 +506,7 @@ fn sim_measure_then_calibrate_end_to_end() {
 
 #[test]
 fn plan_writes_a_pose_list_collect_reads_and_refuses_bad_settings() {
+    let _cpu = crate::common::busy_lock();
     let dir = std::env::temp_dir().join(format!("pa10-plan-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("poses.csv");
@@ -631,6 +642,7 @@ fn plan_writes_a_pose_list_collect_reads_and_refuses_bad_settings() {
 
 #[test]
 fn sim_on_a_missing_can_interface_fails_clearly() {
+    let _cpu = crate::common::busy_lock();
     let o = pa10(&["sim", "--can", "pa10-no-such-if", "--duration", "0.1"]);
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8_lossy(&o.stderr);
@@ -666,6 +678,7 @@ fn sim_on_a_missing_can_interface_fails_clearly() {
 
 #[test]
 fn discover_names_hidden_backlash_from_files_and_writes_a_model_the_daemon_loads() {
+    let _cpu = crate::common::busy_lock();
     let dir = std::env::temp_dir().join(format!("pa10-cli-discover-{}", std::process::id()));
     let d = dir.to_str().unwrap();
     let o = pa10(&[
@@ -735,6 +748,7 @@ fn discover_names_hidden_backlash_from_files_and_writes_a_model_the_daemon_loads
 
 #[test]
 fn the_mujoco_config_checks_and_a_bad_plant_section_is_refused_by_key() {
+    let _cpu = crate::common::busy_lock();
     let pa10d = |args: &[&str]| {
         Command::new(env!("CARGO_BIN_EXE_pa10d"))
             .args(args)
@@ -777,6 +791,7 @@ fn the_mujoco_config_checks_and_a_bad_plant_section_is_refused_by_key() {
 /// nominal model does not know) far better than the nominal model does.
 #[test]
 fn identify_recovers_the_hidden_gravity_through_the_daemon() {
+    let _cpu = crate::common::busy_lock();
     use pa10::model::{ExternalLoad, Model};
     let dir = std::env::temp_dir().join(format!("pa10-identify-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();

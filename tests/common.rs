@@ -103,8 +103,9 @@ pub fn calibrated_and_nominal(seed: u64) -> (pa10::sim::experiment::Campaign, Mo
 /// The two tests that run in real time (the `pa10d` binary, the demo: a control thread and a
 /// simulator thread each) hold this exclusively: one at a time, and never beside the tests
 /// that keep a core busy for seconds (the simulated-time daemon tests, the independent
-/// generator's campaigns), which hold it shared, so that two-core CI machines do not starve
-/// the real-time cycles.
+/// generator's campaigns, every calibration, discovery and CLI test), which hold it shared, so
+/// that two-core CI machines do not starve the real-time cycles (a discovery beside the paused
+/// control thread's test cost it 5 incomplete cycles on CI).
 static REALTIME: std::sync::RwLock<()> = std::sync::RwLock::new(());
 
 /// Holds the real-time lock exclusively (see [`REALTIME`]) until dropped.

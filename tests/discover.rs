@@ -30,6 +30,7 @@ fn position(s: &EffectState, o: &Obs) -> Vector3<f64> {
 
 #[test]
 fn every_kind_has_a_stable_name_a_description_and_units() {
+    let _cpu = crate::common::busy_lock();
     for k in Kind::ALL {
         assert_eq!(Kind::from_name(k.name()), Some(k));
         assert!(!k.description().is_empty());
@@ -46,6 +47,7 @@ fn every_kind_has_a_stable_name_a_description_and_units() {
 
 #[test]
 fn joint_side_effects_move_the_link_as_documented() {
+    let _cpu = crate::common::busy_lock();
     let m = perturbed_model(&mut rng(3));
     let mut r = rng(4);
     let q = random_q(&mut r, &m);
@@ -71,6 +73,7 @@ fn joint_side_effects_move_the_link_as_documented() {
 
 #[test]
 fn the_model_file_compensates_the_run_time_effects_exactly_as_discovery_predicts_them() {
+    let _cpu = crate::common::busy_lock();
     let m = perturbed_model(&mut rng(5));
     let mut s = EffectState::from_model(&m, 50.0);
     for (slot, v) in [
@@ -117,6 +120,7 @@ fn the_model_file_compensates_the_run_time_effects_exactly_as_discovery_predicts
 
 #[test]
 fn frame_effects_move_the_target_as_documented() {
+    let _cpu = crate::common::busy_lock();
     let m = perturbed_model(&mut rng(7));
     let q = random_q(&mut rng(8), &m);
     let tau = [0.0; 6];
@@ -146,6 +150,7 @@ fn frame_effects_move_the_target_as_documented() {
 
 #[test]
 fn bad_options_and_thin_data_get_precise_errors() {
+    let _cpu = crate::common::busy_lock();
     let c = discovery_campaign(&DiscoverySpec {
         configs: 8,
         loads: vec![0.0],
@@ -191,6 +196,7 @@ fn bad_options_and_thin_data_get_precise_errors() {
 
 #[test]
 fn datasets_carry_directions_and_temperatures_through_csv() {
+    let _cpu = crate::common::busy_lock();
     let c = discovery_campaign(&DiscoverySpec {
         configs: 8,
         loads: vec![0.0],
@@ -252,6 +258,7 @@ fn run(name: &str, seed: u64) -> Discovery {
 
 #[test]
 fn hidden_cubic_stiffness_on_j2_is_named_from_a_linear_only_model() {
+    let _cpu = crate::common::busy_lock();
     let d = run("cubic-j2", 11);
     let truth = pa10::sim::TrueRobot::draw(
         11,
@@ -271,6 +278,7 @@ fn hidden_cubic_stiffness_on_j2_is_named_from_a_linear_only_model() {
 
 #[test]
 fn hidden_compliance_on_j4_is_named_and_its_spring_estimated() {
+    let _cpu = crate::common::busy_lock();
     let d = run("compliance-j4", 12);
     assert!(
         d.steps[0].look_alikes.is_empty(),
@@ -288,6 +296,7 @@ fn hidden_compliance_on_j4_is_named_and_its_spring_estimated() {
 
 #[test]
 fn hidden_transmission_error_on_j3_is_named() {
+    let _cpu = crate::common::busy_lock();
     let d = run("transmission-j3", 13);
     // the eccentricity is its first harmonic: reported as a look-alike
     assert!(
@@ -305,6 +314,7 @@ fn hidden_transmission_error_on_j3_is_named() {
 
 #[test]
 fn hidden_backlash_on_j1_is_named() {
+    let _cpu = crate::common::busy_lock();
     let d = run("backlash-j1", 14);
     let b = d.effects[0].params["backlash"];
     assert!((b - 4e-4).abs() < 2e-5, "{b}");
@@ -316,6 +326,7 @@ fn hidden_backlash_on_j1_is_named() {
 
 #[test]
 fn hidden_thermal_expansion_of_the_forearm_is_named() {
+    let _cpu = crate::common::busy_lock();
     let d = run("thermal-forearm", 15);
     let a = d.effects[0].params["alpha"];
     assert!((a - 2.3e-5).abs() < 2e-6, "{a}");
@@ -324,6 +335,7 @@ fn hidden_thermal_expansion_of_the_forearm_is_named() {
 
 #[test]
 fn two_hidden_effects_are_found_in_order_of_size() {
+    let _cpu = crate::common::busy_lock();
     let d = run("j4-and-backlash", 16);
     assert!(d.effects[0].gain_mm > d.effects[1].gain_mm);
     assert_eq!(d.effects.len(), 2, "{:?}", d.effects);
@@ -335,6 +347,7 @@ fn two_hidden_effects_are_found_in_order_of_size() {
 
 #[test]
 fn nothing_is_named_when_nothing_is_hidden() {
+    let _cpu = crate::common::busy_lock();
     // The false-positive rate over many seeds is measured by the discovery_study example
     // (0 of 40 at 40 configurations); here a handful of seeds guard the thresholds.
     for seed in 21..=24 {
@@ -351,6 +364,7 @@ fn nothing_is_named_when_nothing_is_hidden() {
 
 #[test]
 fn effects_the_data_cannot_see_are_reported_not_identifiable() {
+    let _cpu = crate::common::busy_lock();
     let sc = scenarios()
         .into_iter()
         .find(|s| s.name == "backlash-j1")

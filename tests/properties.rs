@@ -91,6 +91,7 @@ proptest! {
 /// Every model file the repository ships round-trips too (through its YAML).
 #[test]
 fn the_shipped_model_files_round_trip() {
+    let _cpu = crate::common::busy_lock();
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("config");
     let mut r = rng(0x5eed);
     let mut n = 0;
@@ -117,6 +118,7 @@ fn the_shipped_model_files_round_trip() {
 /// The 1 mrad J2 eccentricity of the `[core]` issue: the round trip used to miss by 7e-4 rad.
 #[test]
 fn an_eccentric_joint_round_trips_through_gravity_compensation() {
+    let _cpu = crate::common::busy_lock();
     let mut d = Model::nominal().data().clone();
     d.joint_errors[1] = Some(JointError {
         eccentricity: [1e-3, 0.0],
@@ -138,6 +140,7 @@ fn an_eccentric_joint_round_trips_through_gravity_compensation() {
 /// A joint error too steep to invert is refused when the model is built.
 #[test]
 fn a_joint_error_too_steep_to_invert_is_refused() {
+    let _cpu = crate::common::busy_lock();
     let mut d = Model::nominal().data().clone();
     d.joint_errors[2] = Some(JointError {
         wave: [[5e-3, 0.0], [0.0, 0.0]],

@@ -78,8 +78,7 @@ pub(super) fn settle(
     let (mut prob, noise) = problem(lay, start, slots.len())?;
     let cur = fit::fit_balanced(&mut prob, start, slots, prior)?;
     let (lof, a_fit) = plain_lack_of_fit(&prob, &cur);
-    let eqs =
-        fold_eqs(&prob, &cur.lin, &lay.folds, lay.holdout).with_prior(prior, slots, &cur.state);
+    let eqs = fold_eqs(&prob, &cur.lin, &lay.folds).with_prior(prior, slots, &cur.state);
     let cols: Vec<usize> = (0..slots.len()).collect();
     let (heldout_costs, gap_mm) = heldout(&prob, &cur.lin, &eqs, &lay.folds, &cols);
     Ok(Settled {
@@ -139,8 +138,7 @@ pub(super) fn round(
             }
         };
         let lin = fitted.lin.rewhitened(prob);
-        let eqs_w =
-            fold_eqs(prob, &lin, &lay.folds, lay.holdout).with_prior(&pw, &with, &fitted.state);
+        let eqs_w = fold_eqs(prob, &lin, &lay.folds).with_prior(&pw, &with, &fitted.state);
         let all: Vec<usize> = (0..with.len()).collect();
         let (costs, gap_w) = heldout(prob, &lin, &eqs_w, &lay.folds, &all);
         // judged on the holdout set alone (the last fold): only it reaches beyond the training

@@ -205,8 +205,7 @@ pub fn discover(
         // The current fit's columns, and the candidates' evaluated at its state.
         let lin = cur.lin.extended(&prob, &cur.state, &all[slots.len()..])?;
         let prior_all = prior_of(&all);
-        let eqs =
-            fold_eqs(&prob, &lin, &lay.folds, lay.holdout).with_prior(&prior_all, &all, &cur.state);
+        let eqs = fold_eqs(&prob, &lin, &lay.folds).with_prior(&prior_all, &all, &cur.state);
         let nb = slots.len();
         let a = &eqs.a_train;
         let g = &eqs.g_train;
@@ -560,7 +559,7 @@ pub fn discover(
             // before it, on the same weights: positive and significant (paired over held-out
             // configurations), whatever the linearised scores said.
             let lin_prev = cur.lin.rewhitened(&s2.prob);
-            let eqs_prev = fold_eqs(&s2.prob, &lin_prev, &lay.folds, lay.holdout).with_prior(
+            let eqs_prev = fold_eqs(&s2.prob, &lin_prev, &lay.folds).with_prior(
                 &prior_of(&slots),
                 &slots,
                 &cur.state,

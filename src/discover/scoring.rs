@@ -330,18 +330,12 @@ impl FoldEqs {
     }
 }
 
-pub(super) fn fold_eqs(
-    p: &Problem,
-    lin: &Linearization,
-    folds: &[Vec<usize>],
-    holdout: bool,
-) -> FoldEqs {
+/// The training normal equations and, per fold, what the fold takes out of them (its training
+/// configurations; a holdout fold takes out nothing).
+pub(super) fn fold_eqs(p: &Problem, lin: &Linearization, folds: &[Vec<usize>]) -> FoldEqs {
     let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
     let rows = p.white_rows(|b| b.train);
     let (a_train, g_train) = fit::normal_eq(lin, &rows, &cols);
-    // what each fold takes out of the training equations: its training configurations (a
-    // holdout fold takes out nothing)
-    let _ = holdout;
     let (a, g) = folds
         .iter()
         .map(|f| {
@@ -388,7 +382,7 @@ pub(super) fn refit_heldout(
 ) -> Result<(Vec<f64>, f64), DiscoverError> {
     let fitted = fit::fit_balanced(&mut p.clone(), start, slots, prior)?;
     let lin = fitted.lin.rewhitened(p);
-    let eqs = fold_eqs(p, &lin, &lay.folds, lay.holdout).with_prior(prior, slots, &fitted.state);
+    let eqs = fold_eqs(p, &lin, &lay.folds).with_prior(prior, slots, &fitted.state);
     let cols: Vec<usize> = (0..slots.len()).collect();
     Ok(heldout(p, &lin, &eqs, &lay.folds, &cols))
 }
