@@ -88,7 +88,7 @@ fn opts() -> Result<Opts> {
         torque_source: "estimated".into(),
         filter_hz: None,
         identify: true,
-        hold_deadband: 0.0,
+        hold_deadband: 1e-4,
         hold_damping: 1.0,
         check_ratio: None,
         trace: None,
