@@ -109,11 +109,7 @@ pub(super) fn round(
     let (base_costs, base_gap) = (&st.heldout_costs, st.gap_mm);
     let reach = torque_reach(lay);
     let ln_n = lay.ln_n();
-    let holdout_len = if lay.holdout {
-        lay.folds.last().map_or(0, Vec::len)
-    } else {
-        0
-    };
+    let holdout_len = lay.holdout_len();
     let cost_before = fit::cost_at(prob, &cur.state, slots, &prior_of(slots))?;
     let m = cands.len().max(1) as f64;
     let mut scored: Vec<(Score, Option<f64>)> = Vec::new();

@@ -37,6 +37,15 @@ impl Layout {
         (n as f64).ln()
     }
 
+    /// Configurations in the holdout set (the last fold), 0 without one.
+    pub(super) fn holdout_len(&self) -> usize {
+        if self.holdout {
+            self.folds.last().map_or(0, Vec::len)
+        } else {
+            0
+        }
+    }
+
     /// How far the training configurations turn each joint: the range (max − min) of the
     /// configurations' mean resolver readings, rad. Means, so that a joint held still does
     /// not seem to move by its reading noise.

@@ -74,9 +74,23 @@ pub const NONZERO_P: f64 = 0.0455;
 /// comparison fails (the strongest first).
 const NONLINEAR_RETRIES: usize = 1;
 
+/// The covariance of `slots` (in their scaled units) at a fit: the inverse of its normal
+/// matrix `a_fit` with the prior, times the dispersion its lack of fit shows (at least 1).
+fn covariance(
+    a_fit: DMatrix<f64>,
+    slots: &[Slot],
+    state: &EffectState,
+    prior: &fit::Prior,
+    lof: &LackOfFit,
+) -> DMatrix<f64> {
+    let mut a = a_fit;
+    let mut g_unused = DVector::zeros(slots.len());
+    prior.add_to(slots, state, &mut a, &mut g_unused, true);
+    fit::pinv(&a) * lof.between.ratio.min(lof.within.ratio).max(1.0)
+}
+
 /// The Wald statistic of the last `k` slots of `slots` at the settled fit `s` (their
-/// estimates over their covariance, with the prior and the dispersion of the final report),
-/// and `k`.
+/// estimates over their [`covariance`], as the final report's), and `k`.
 fn wald_of_last(
     s: &complete::Settled,
     slots: &[Slot],
@@ -84,10 +98,7 @@ fn wald_of_last(
     k: usize,
 ) -> (f64, usize) {
     let n = slots.len();
-    let mut a = s.a_fit.clone();
-    let mut g_unused = DVector::zeros(n);
-    prior.add_to(slots, &s.cur.state, &mut a, &mut g_unused, true);
-    let cov = fit::pinv(&a) * s.lof.between.ratio.min(s.lof.within.ratio).max(1.0);
+    let cov = covariance(s.a_fit.clone(), slots, &s.cur.state, prior, &s.lof);
     let idx: Vec<usize> = (n - k..n).collect();
     let c = DMatrix::from_fn(k, k, |i, j| cov[(idx[i], idx[j])]);
     let theta = DVector::from_fn(k, |i, _| {
@@ -693,10 +704,7 @@ pub fn discover(
         &lay, &prior_of, opts, &mut found, &mut slots, &mut steps, settled,
     )?;
     // Uncertainties at the final fit.
-    let mut a = a_fit;
-    let mut g_unused = DVector::zeros(slots.len());
-    prior_of(&slots).add_to(&slots, &cur.state, &mut a, &mut g_unused, true);
-    let cov = fit::pinv(&a) * lof.between.ratio.min(lof.within.ratio).max(1.0);
+    let cov = covariance(a_fit, &slots, &cur.state, &prior_of(&slots), &lof);
     let effects_out = report::found(&found, &slots, &cur.state, &cov, lay.per_kelvin);
     let evidence = found
         .iter()
@@ -750,9 +758,9 @@ pub fn discover(
         train_gap_after_mm: train_rms_mm(&prob, &cur.lin.raw),
         noise_floor_mm: floor,
         heldout: if lay.holdout {
-            let holdout = lay.folds.last().map_or(0, Vec::len);
             format!(
-                "holdout set ({holdout} configurations) and {}-fold cross-validation by configuration over the training set",
+                "holdout set ({} configurations) and {}-fold cross-validation by configuration over the training set",
+                lay.holdout_len(),
                 lay.folds.len() - 1
             )
         } else {

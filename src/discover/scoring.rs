@@ -387,11 +387,17 @@ pub(super) fn refit_heldout(
     Ok(heldout(p, &lin, &eqs, &lay.folds, &cols))
 }
 
+/// Whether block `b` of `folds` counts in the held-out gap: the holdout set's blocks when the
+/// folds include one, else every fold's (a cross-validated training configuration is
+/// predicted by a model fitted without it, the holdout set by the model itself).
+pub(super) fn in_gap<'a>(p: &'a Problem, folds: &[Vec<usize>]) -> impl Fn(usize) -> bool + 'a {
+    let any_holdout = folds.iter().flatten().any(|&b| !p.blocks[b].train);
+    move |b| !(any_holdout && p.blocks[b].train)
+}
+
 /// Held-out evaluation of a linearised refit over columns `cols`: per held-out block
-/// whitened cost (every fold's), and the RMS position error (mm) over the holdout set's rows
-/// when the folds include one, else over every fold's (the gap the verdict judges: a
-/// cross-validated training configuration is predicted by a model fitted without it, the
-/// holdout set by the model itself).
+/// whitened cost (every fold's), and the RMS position error (mm) over the blocks [`in_gap`]
+/// (the gap the verdict judges).
 pub(super) fn heldout(
     p: &Problem,
     lin: &Linearization,
@@ -405,7 +411,7 @@ pub(super) fn heldout(
     let mut costs = Vec::new();
     let (mut ss, mut n) = (0.0, 0usize);
     let mut white = vec![0.0; 0];
-    let any_holdout = folds.iter().flatten().any(|&b| !p.blocks[b].train);
+    let counts = in_gap(p, folds);
     for (f, blocks) in folds.iter().enumerate() {
         let a = sub(&eqs.a_train) - sub(&eqs.a[f]);
         let g = subv(&eqs.g_train) - subv(&eqs.g[f]);
@@ -424,7 +430,7 @@ pub(super) fn heldout(
                         .sum::<f64>()
             }));
             costs.push(white.iter().map(|x| x * x).sum());
-            if any_holdout && bl.train {
+            if !counts(b) {
                 continue;
             }
             for &i in &bl.rows {

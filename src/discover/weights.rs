@@ -117,13 +117,9 @@ pub(super) fn noise_floor_mm(
     sr: f64,
 ) -> f64 {
     let (mut ss, mut n) = (0.0, 0usize);
-    // over the rows the held-out gap is measured on ([`super::scoring::heldout`])
-    let any_holdout = folds.iter().flatten().any(|&b| !p.blocks[b].train);
-    for &b in folds
-        .iter()
-        .flatten()
-        .filter(|&&b| !(any_holdout && p.blocks[b].train))
-    {
+    // over the rows the held-out gap is measured on
+    let counts = super::scoring::in_gap(p, folds);
+    for &b in folds.iter().flatten().filter(|&&b| counts(b)) {
         for &i in &p.blocks[b].rows {
             let q = forward::link_angles(state, &p.obs[i]);
             let j = geom.jacobian(&q);
