@@ -19,22 +19,17 @@
 
 #[path = "../tests/indep/mod.rs"]
 mod indep;
+#[path = "common/indep_run.rs"]
+mod indep_run;
 
 use std::time::Instant;
 
 use indep::{Hidden, Spec, families, generate};
-use pa10::calib::dataset::Dataset;
 use pa10::calib::fit::{CalibOptions, calibrate, evaluate};
 use pa10::discover::{DiscoverOptions, Discovery, discover};
 use pa10::model::Model;
 
-fn load(set: &indep::Set, tag: &str) -> anyhow::Result<(Dataset, Dataset)> {
-    let dir = std::env::temp_dir().join(format!("pa10-study-{tag}-{}", std::process::id()));
-    let (cal, val) = indep::write(set, &dir);
-    let out = (Dataset::load(&cal)?, Dataset::load(&val)?);
-    std::fs::remove_dir_all(&dir)?;
-    Ok(out)
-}
+use indep_run::{calibrate_and_discover, load};
 
 /// A set of `fam` with `hidden`, calibrated from the nominal model, then discovered from the
 /// calibrated model with the validation set held out.
@@ -43,16 +38,7 @@ fn hidden_run(fam: indep::Family, hidden: Hidden, seed: u64) -> anyhow::Result<D
         hidden,
         ..Spec::paper(seed, fam)
     });
-    let (cal, val) = load(&set, fam.name)?;
-    let m = calibrate(
-        &Model::nominal(),
-        &cal,
-        None,
-        &CalibOptions::default(),
-        &|_| {},
-    )?
-    .model;
-    Ok(discover(&m, &cal, Some(&val), &DiscoverOptions::default())?)
+    Ok(calibrate_and_discover(&set, fam.name)?.discovery)
 }
 
 fn within(est: f64, truth: f64) -> bool {

@@ -17,14 +17,11 @@
 
 #[path = "../tests/indep/mod.rs"]
 mod indep;
-
-use std::time::Instant;
+#[path = "common/indep_run.rs"]
+mod indep_run;
 
 use indep::{Hidden, Spec, families, generate};
-use pa10::calib::dataset::Dataset;
-use pa10::calib::fit::{CalibOptions, calibrate};
-use pa10::discover::{DiscoverOptions, discover};
-use pa10::model::Model;
+use indep_run::calibrate_and_discover;
 
 fn main() -> anyhow::Result<()> {
     let seeds: u64 = std::env::args().nth(1).map_or(Ok(10), |s| s.parse())?;
@@ -45,27 +42,11 @@ fn main() -> anyhow::Result<()> {
                     hidden,
                     ..Spec::paper_validation(seed, fam)
                 });
-                let dir = std::env::temp_dir().join(format!(
-                    "pa10-paper-{}-{case}-{seed}-{}",
-                    fam.name,
-                    std::process::id()
-                ));
-                let (c, v) = indep::write(&set, &dir);
-                let (cal, val) = (Dataset::load(&c)?, Dataset::load(&v)?);
-                std::fs::remove_dir_all(&dir)?;
-                let t = Instant::now();
-                let m = calibrate(
-                    &Model::nominal(),
-                    &cal,
-                    None,
-                    &CalibOptions::default(),
-                    &|_| {},
-                )?
-                .model;
-                t_cal += t.elapsed().as_secs_f64();
-                let t = Instant::now();
-                let d = discover(&m, &cal, Some(&val), &DiscoverOptions::default())?;
-                t_disc += t.elapsed().as_secs_f64();
+                let run =
+                    calibrate_and_discover(&set, &format!("paper-{}-{case}-{seed}", fam.name))?;
+                t_cal += run.calibrate_s;
+                t_disc += run.discover_s;
+                let d = run.discovery;
                 let named: Vec<Option<usize>> = d.effects.iter().map(|e| e.joint).collect();
                 let ok = match joint {
                     None => named.is_empty(),
