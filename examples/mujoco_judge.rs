@@ -34,6 +34,7 @@ use pa10::calib::identify::{self, SweepPlan};
 use pa10::daemon::api::sweep;
 use pa10::daemon::config::{Config, Settings};
 use pa10::daemon::core::Core;
+use pa10::discover::{DiscoverOptions, Found, discover};
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
@@ -75,6 +76,9 @@ struct Opts {
     check_ratio: Option<f64>,
     /// `--trace FILE`: every move's and settle's samples as CSV (for finding what rings).
     trace: Option<PathBuf>,
+    /// Gather a held-out campaign, run `pa10 discover` from the calibrated model and validate
+    /// the extended model beside it.
+    discover: bool,
 }
 
 fn opts() -> Result<Opts> {
@@ -92,6 +96,7 @@ fn opts() -> Result<Opts> {
         hold_damping: 1.0,
         check_ratio: None,
         trace: None,
+        discover: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -101,6 +106,7 @@ fn opts() -> Result<Opts> {
             "--quick" => o.quick = true,
             "--check" => o.check = true,
             "--identify" => o.identify = true,
+            "--discover" => o.discover = true,
             "--no-identify" => o.identify = false,
             "--seed" => o.seed = value("--seed")?.parse().context("--seed: an integer")?,
             "--friction" => {
@@ -158,7 +164,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
             ),
         }
     }
@@ -180,6 +186,27 @@ struct LoadRow {
     /// Time from the load change until the resolvers and MuJoCo's links were still, mean over
     /// the calibrated model's poses, s (at most 5)
     settle_mean_s: f64,
+    /// With `--discover`: the extended model's mean and peak position error, mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    extended_mean_mm: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    extended_peak_mm: Option<f64>,
+}
+
+/// With `--discover`: what `pa10 discover` said on the campaign and the held-out set.
+#[derive(Debug, Serialize)]
+struct DiscoverySummary {
+    verdict: String,
+    gap_closed: bool,
+    /// Rows of the held-out campaign (novel configurations at 0/45/90 N).
+    heldout_rows: usize,
+    /// Discovery's held-out RMS position error, mm: the calibrated model, the extended one,
+    /// and the noise floor it expects.
+    heldout_before_mm: f64,
+    heldout_after_mm: f64,
+    noise_floor_mm: f64,
+    /// Wall-clock time of the discovery, s.
+    elapsed_s: f64,
 }
 
 #[derive(Debug, Serialize)]
@@ -218,6 +245,11 @@ struct Outcome {
     /// The daemon's `control.hold_damping`.
     hold_damping: f64,
     identification: Option<Identification>,
+    /// With `--discover`: the effects named, in the order added (`pa10 discover --json`'s).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    discovered: Option<Vec<Found>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    discovery: Option<DiscoverySummary>,
     seed: u64,
     calibration_rows: usize,
     validation_poses: usize,
@@ -566,36 +598,18 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         .into_iter()
         .filter(|(id, _)| !o.quick || !id[1..].contains('1'))
         .collect();
-    let mut data = Dataset::default();
     let mut reference = HOME;
-    for (n, (id, target)) in poses.iter().enumerate() {
-        let q = nominal
+    let mut configs = Vec::new();
+    for (id, target) in &poses {
+        reference = nominal
             .ik_nearest(target, &reference)
             .map_err(|e| anyhow!("pose {id}: {e}"))?;
-        reference = q;
-        move_settle(&mut ls, ApiRequest::MoveJoints { q }).with_context(|| format!("pose {id}"))?;
-        let mut loads = CAL_LOADS.to_vec();
-        if n % 2 == 1 {
-            loads.reverse();
-        }
-        for load in loads {
-            set_load(&mut ls, load).with_context(|| format!("pose {id} at {load} N"))?;
-            for _ in 0..repeats {
-                let s = status(&ls)?;
-                data.rows.push(Row {
-                    config_id: id.clone(),
-                    load_n: load,
-                    q: s.q_motor,
-                    effort: Effort::Current(s.current),
-                    pose: truth.observe_pose(&ls.servo.true_tool_pose(), &mut rng),
-                    direction: [0; 6],
-                    temperature_c: None,
-                    line: 0,
-                });
-                ls.run_for(0.01);
-            }
-        }
+        configs.push((id.clone(), reference));
     }
+    let mut data = Dataset {
+        rows: gather(&mut ls, &configs, &CAL_LOADS, repeats, &mut rng)?,
+        ..Dataset::default()
+    };
     data.meta = Some(Meta {
         inner_configs: Some(
             poses
@@ -610,6 +624,25 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             &truth.noise,
         )
     });
+
+    // 1b. With --discover, a held-out campaign through the daemon as a lab gathers it: novel
+    //     configurations at the validation loads (its own random stream, so the validation
+    //     poses are those of a run without it).
+    let holdout = if o.discover {
+        let mut hrng = Pcg64::seed_from_u64(o.seed ^ 0x401d);
+        let configs = novel_configs(&nominal, if o.quick { 4 } else { 10 }, &mut hrng);
+        Some(Dataset {
+            rows: gather(&mut ls, &configs, &VAL_LOADS, repeats, &mut hrng)
+                .context("the held-out campaign")?,
+            meta: Some(sidecar(
+                format!("MuJoCo plant (seed {}) through pa10d, held out", o.seed),
+                &tool,
+                &truth.noise,
+            )),
+        })
+    } else {
+        None
+    };
 
     // 2. Calibrate: the full model and the nominal model placed.
     let copts = CalibOptions {
@@ -626,6 +659,25 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     };
     let full = calibrate(&base, &data, None, &copts, &|_| {})?.model;
     let placed = fit_base_only(&base, &data, None, &copts)?;
+    // 2b. `pa10 discover` from the calibrated model with the held-out campaign.
+    let discovery = match &holdout {
+        Some(h) => {
+            let h = if ["model", "estimated"].contains(&o.torque_source.as_str()) {
+                h.with_model_torques(&base)
+            } else {
+                h.clone()
+            };
+            let t = Instant::now();
+            let dopts = DiscoverOptions {
+                torque_constants: Some(kt),
+                seed: o.seed,
+                ..Default::default()
+            };
+            let d = discover(&full, &data, Some(&h), &dopts).context("pa10 discover")?;
+            Some((d, t.elapsed().as_secs_f64(), h.rows.len()))
+        }
+        None => None,
+    };
 
     // 3. Novel poses (instrument frame) at 0/45/90 N, each model loaded into the daemon.
     let n_val = if o.quick { 2 } else { 6 };
@@ -639,7 +691,10 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         }
     }
     let truth_base = *truth.model.base_from_instrument();
-    let named: [(&str, &Model); 2] = [("nominal", &placed), ("calibrated", &full)];
+    let mut named: Vec<(&str, &Model)> = vec![("nominal", &placed), ("calibrated", &full)];
+    if let Some((d, _, _)) = &discovery {
+        named.push(("extended", &d.model));
+    }
     let mut paths = Vec::new();
     for (name, m) in &named {
         let path = dir.join(format!("{name}.yaml"));
@@ -700,6 +755,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             nominal_rest_mrad: mean(&rest[0][l]),
             calibrated_rest_mrad: mean(&rest[1][l]),
             settle_mean_s: mean(&settle_s[1][l]),
+            extended_mean_mm: errs.get(2).map(|e| mean(&e[l])),
+            extended_peak_mm: errs.get(2).map(|e| peak(&e[l])),
         })
         .collect();
     if let Some(i) = identification.as_mut() {
@@ -722,7 +779,14 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     //    loaded wrist's ring-down. A run the daemon cannot come back from ends the judge
     //    there, said in `aborted` (the numbers before it stand).
     let (mut runs, mut streams, mut ring) = (Vec::new(), Vec::new(), None);
-    let aborted = dynamics(&mut ls, &named, &paths, &mut runs, &mut streams, &mut ring)
+    let aborted = dynamics(
+        &mut ls,
+        &named[..2],
+        &paths[..2],
+        &mut runs,
+        &mut streams,
+        &mut ring,
+    )
         .err()
         .map(|e| format!("{e:#}"));
     let pick = |name: &str, f: fn(&Run) -> f64| {
@@ -754,12 +818,77 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         hold_deadband: o.hold_deadband,
         hold_damping: o.hold_damping,
         identification,
+        discovered: discovery.as_ref().map(|(d, _, _)| d.effects.clone()),
+        discovery: discovery.map(|(d, secs, rows)| DiscoverySummary {
+            verdict: d.verdict,
+            gap_closed: d.gap_closed,
+            heldout_rows: rows,
+            heldout_before_mm: d.gap_before_mm,
+            heldout_after_mm: d.gap_after_mm,
+            noise_floor_mm: d.noise_floor_mm,
+            elapsed_s: secs,
+        }),
         seed: o.seed,
         calibration_rows: data.rows.len(),
         validation_poses: targets.len(),
         simulated_s: ls.now(),
         elapsed_s: t0.elapsed().as_secs_f64(),
     })
+}
+
+/// `n` novel configurations (ids `H1`…) for random tool poses in the validation volume that the
+/// nominal model reaches from an elbow-up reference.
+fn novel_configs(nominal: &Model, n: usize, rng: &mut Pcg64) -> Vec<(String, [f64; 6])> {
+    let mut out = Vec::new();
+    while out.len() < n {
+        let t = random_pose(rng, [0.40, -0.25, -0.10], [0.75, 0.25, 0.30]);
+        let p = t.translation.vector;
+        let reference = [p.y.atan2(p.x), 0.3, 1.6, 0.0, 1.1, 0.0];
+        if let Ok(q) = nominal.ik_nearest(&t, &reference) {
+            out.push((format!("H{}", out.len() + 1), q));
+        }
+    }
+    out
+}
+
+/// A campaign gathered through the daemon as a lab does: each of `configs` (joint angles, rad)
+/// reached, then at each of `loads` (N; every other configuration in reverse order) `repeats`
+/// readings of the motor angles and currents beside the instrument's reading of MuJoCo's tool
+/// pose (with the drawn instrument noise).
+fn gather(
+    ls: &mut Lockstep,
+    configs: &[(String, [f64; 6])],
+    loads: &[f64],
+    repeats: usize,
+    rng: &mut Pcg64,
+) -> Result<Vec<Row>> {
+    let truth = ls.servo.truth().clone();
+    let mut rows = Vec::new();
+    for (n, (id, q)) in configs.iter().enumerate() {
+        move_settle(ls, ApiRequest::MoveJoints { q: *q }).with_context(|| format!("pose {id}"))?;
+        let mut order = loads.to_vec();
+        if n % 2 == 1 {
+            order.reverse();
+        }
+        for load in order {
+            set_load(ls, load).with_context(|| format!("pose {id} at {load} N"))?;
+            for _ in 0..repeats {
+                let s = status(ls)?;
+                rows.push(Row {
+                    config_id: id.clone(),
+                    load_n: load,
+                    q: s.q_motor,
+                    effort: Effort::Current(s.current),
+                    pose: truth.observe_pose(&ls.servo.true_tool_pose(), rng),
+                    direction: [0; 6],
+                    temperature_c: None,
+                    line: 0,
+                });
+                ls.run_for(0.01);
+            }
+        }
+    }
+    Ok(rows)
 }
 
 /// `pa10 identify`'s tour through the daemon (6 waypoints quick, 10 full): the nominal model
@@ -796,7 +925,7 @@ type Run = (f64, String, f64, f64, String);
 /// Phases 4 and 5 of [`judge`]: what each measured goes into `runs`, `streams`, `ring`.
 fn dynamics(
     ls: &mut Lockstep,
-    named: &[(&str, &Model); 2],
+    named: &[(&str, &Model)],
     paths: &[PathBuf],
     runs: &mut Vec<Run>,
     streams: &mut Vec<Run>,
@@ -999,6 +1128,35 @@ fn print(o: &Outcome) {
             l.calibrated_peak_mm,
             o.floor_mm
         );
+    }
+    if let (Some(d), Some(found)) = (&o.discovery, &o.discovered) {
+        println!(
+            "\npa10 discover from the calibrated model ({} held-out rows, {:.1} s): {}",
+            d.heldout_rows, d.elapsed_s, d.verdict
+        );
+        for f in found {
+            let params: Vec<String> = f
+                .params
+                .iter()
+                .map(|(k, v)| {
+                    let se = f.stderr.get(k).copied().unwrap_or(f64::NAN);
+                    format!("{k} = {v:.3e} ± {se:.1e} {}", f.units.get(k).unwrap_or(&""))
+                })
+                .collect();
+            println!("  named {}: {}", f.label, params.join(", "));
+        }
+        println!("\n| load [N] | calibrated mean [mm] | extended mean / peak [mm] | MC floor [mm] |");
+        println!("|---|---|---|---|");
+        for l in &o.loads {
+            println!(
+                "| {:.0} | {:.3} | {:.3} / {:.3} | {:.3} |",
+                l.load_n,
+                l.calibrated_mean_mm,
+                l.extended_mean_mm.unwrap_or(f64::NAN),
+                l.extended_peak_mm.unwrap_or(f64::NAN),
+                o.floor_mm
+            );
+        }
     }
     println!(
         "\nAt rest, MuJoCo's link − the daemon's setpoint (RMS over joints, mean over poses):"
