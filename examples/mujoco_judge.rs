@@ -34,8 +34,8 @@ use pa10::calib::identify::{self, SweepPlan};
 use pa10::daemon::api::sweep;
 use pa10::daemon::config::{Config, Settings};
 use pa10::daemon::core::Core;
-use pa10::discover::{DiscoverOptions, Found, discover};
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
+use pa10::discover::{DiscoverOptions, Found, discover};
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
@@ -55,6 +55,11 @@ mod tracking;
 const CAL_LOADS: [f64; 3] = [0.0, 22.0, 44.0];
 const VAL_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
 const PERIOD_S: f64 = 0.002;
+/// How much worse than the calibrated model's mean error the extended model's may be, as a
+/// fraction of the floor, before `--check` calls it worse: the two are measured at nearly the
+/// same setpoints of the same novel poses, so their difference carries little of the resolver
+/// noise (tests/mujoco/study.py uses the same).
+const EXTENDED_SLACK: f64 = 0.1;
 
 struct Opts {
     json: bool,
@@ -310,8 +315,9 @@ fn main() -> Result<()> {
 /// What the judge requires of the daemon (`--check`; the reasons it does not hold): the
 /// calibrated model's mean error within `ratio` × the Monte Carlo floor at every load (1.3 on
 /// the full run, 2 on the quick one: 8 calibration poses, 2 validation poses), the nominal
-/// model three times worse at 90 N, tracking better than nominal, the loaded wrist's ring
-/// decaying, and no run ending early.
+/// model three times worse at 90 N, with `--discover` the extended model not worse than the
+/// calibrated one (by more than [`EXTENDED_SLACK`] × the floor), tracking better than nominal,
+/// the loaded wrist's ring decaying, and no run ending early.
 fn check(o: &Outcome, ratio: f64) -> Vec<String> {
     let mut bad = Vec::new();
     for l in &o.loads {
@@ -319,6 +325,16 @@ fn check(o: &Outcome, ratio: f64) -> Vec<String> {
             bad.push(format!(
                 "{} N: calibrated mean {:.3} mm > {ratio} × the floor {:.3} mm",
                 l.load_n, l.calibrated_mean_mm, o.floor_mm
+            ));
+        }
+    }
+    for l in &o.loads {
+        if let Some(e) = l.extended_mean_mm
+            && e > l.calibrated_mean_mm + EXTENDED_SLACK * o.floor_mm
+        {
+            bad.push(format!(
+                "{} N: the extended model's mean {e:.3} mm is worse than the calibrated {:.3} mm",
+                l.load_n, l.calibrated_mean_mm
             ));
         }
     }
@@ -787,8 +803,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         &mut streams,
         &mut ring,
     )
-        .err()
-        .map(|e| format!("{e:#}"));
+    .err()
+    .map(|e| format!("{e:#}"));
     let pick = |name: &str, f: fn(&Run) -> f64| {
         runs.iter()
             .filter(|r| r.1 == name)
@@ -1145,7 +1161,9 @@ fn print(o: &Outcome) {
                 .collect();
             println!("  named {}: {}", f.label, params.join(", "));
         }
-        println!("\n| load [N] | calibrated mean [mm] | extended mean / peak [mm] | MC floor [mm] |");
+        println!(
+            "\n| load [N] | calibrated mean [mm] | extended mean / peak [mm] | MC floor [mm] |"
+        );
         println!("|---|---|---|---|");
         for l in &o.loads {
             println!(

@@ -737,6 +737,54 @@ fn discover_names_hidden_backlash_from_files_and_writes_a_model_the_daemon_loads
             .to_string_lossy()
             .ends_with(".svg"))
     );
+    // Currents that lie (every torque column zero, as a stuck drive's current can read):
+    // `--model-torques` takes both sets' torques from the start model's statics instead.
+    for f in ["cal", "holdout"] {
+        let text = std::fs::read_to_string(p(&format!("{f}.csv"))).unwrap();
+        let mut lines = text.lines();
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let tau: Vec<usize> = (1..=6)
+            .map(|j| header.iter().position(|h| *h == format!("tau{j}")).unwrap())
+            .collect();
+        let mut out = header.join(",") + "\n";
+        for l in lines {
+            let mut cells: Vec<&str> = l.split(',').collect();
+            for &k in &tau {
+                cells[k] = "0";
+            }
+            out += &(cells.join(",") + "\n");
+        }
+        std::fs::write(p(&format!("zero-{f}.csv")), out).unwrap();
+        std::fs::copy(
+            p(&format!("{f}.meta.yaml")),
+            p(&format!("zero-{f}.meta.yaml")),
+        )
+        .unwrap();
+    }
+    let zero = |flag: &[&str]| {
+        let mut args = vec![
+            "discover",
+            "--model",
+            &start,
+            "--json",
+            "--max-effects",
+            "1",
+        ];
+        let (zc, zh) = (p("zero-cal.csv"), p("zero-holdout.csv"));
+        args.extend(["--data", &zc, "--holdout", &zh]);
+        args.extend(flag);
+        stdout_json(&pa10(&args))
+    };
+    let (lying, modelled) = (zero(&[]), zero(&["--model-torques"]));
+    let gap = |j: &serde_json::Value| j["gap_before_mm"].as_f64().unwrap();
+    assert!(
+        gap(&modelled) < 0.6 * gap(&lying),
+        "--model-torques: held-out gap {} mm vs {} mm on the zero torques",
+        gap(&modelled),
+        gap(&lying)
+    );
+    assert_eq!(modelled["effects"][0]["name"], "backlash");
+    assert_ne!(lying["effects"][0]["name"], "backlash");
     // Bad input: a precise error, nothing written.
     let o = pa10(&["discover", "--data", &cal, "--only", "gremlins"]);
     assert!(!o.status.success());

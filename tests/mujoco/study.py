@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """The MuJoCo judge over a grid of plants: seeds x friction models (creep, stick) x friction
 scales, run in parallel, each run `mujoco_judge --json`, summarised per (friction model,
-scale) as docs/judge.md's tables (issue #40).
+scale) as docs/judge.md's tables (issue #40). Runs with `-- --discover` add a table per run
+(issue #42): calibrated and extended model against the floor, and what `pa10 discover` named
+against the plant's hidden springs (plant.py's `Truth`, which the judge never reads).
 
     python3 tests/mujoco/study.py [--judge target/release/examples/mujoco_judge]
         [--seeds 1-10] [--models creep,stick] [--friction 0,1,2] [--jobs 2] [--quick]
@@ -10,16 +12,23 @@ scale) as docs/judge.md's tables (issue #40).
 Every run's JSON line (or its failure) goes to --out as it ends; the summary goes to stdout
 (`--summary FILE` prints it for the lines of an earlier --out). With
 --check RATIO the exit status is 1 when a run failed, faulted or aborted, or a calibrated mean
-error exceeded RATIO x the Monte Carlo floor. A run has a time limit (30 min).
+error exceeded RATIO x the Monte Carlo floor, or an extended model was worse than the
+calibrated one by more than EXTENDED_SLACK x the floor at a load. A run has a time limit (30 min).
 """
 import argparse
 import concurrent.futures as cf
 import json
+import os
 import statistics
 import subprocess
 import sys
 
 RUN_TIMEOUT_S = 1800
+HERE = os.path.dirname(os.path.abspath(__file__))
+# An extended model's mean error may exceed the calibrated one's by this fraction of the floor
+# (the validation poses' noise on two models measured at nearly the same setpoints) before the
+# check calls it worse; the judge's --check uses the same.
+EXTENDED_SLACK = 0.1
 
 
 def seeds(text):
@@ -70,7 +79,63 @@ def problems(r, ratio):
     for l in r["loads"]:
         if ratio is not None and l["calibrated_mean_mm"] > ratio * r["floor_mm"]:
             bad.append(f"{l['load_n']:.0f} N: {l['calibrated_mean_mm'] / r['floor_mm']:.2f}x the floor")
+        ext = l.get("extended_mean_mm")
+        if ext is not None and ext > l["calibrated_mean_mm"] + EXTENDED_SLACK * r["floor_mm"]:
+            bad.append(f"{l['load_n']:.0f} N: extended {ext:.3f} mm worse than calibrated "
+                       f"{l['calibrated_mean_mm']:.3f} mm")
     return bad
+
+
+def hidden_compliance(seed):
+    """The plant's spring compliances per joint for `seed`, rad/(N·m), from plant.py's Truth
+    (the model calls J1, J4 and J6 rigid; a load hung at the tool loads J4 only: J1's axis is
+    vertical and the tool point lies on J6's axis)."""
+    sys.path.insert(0, HERE)
+    import plant
+    t = plant.Truth(seed)
+    return [1.0 / (plant.K1[j] * t.k_scale[j]) for j in range(6)]
+
+
+def named_text(f, truth):
+    """One effect `pa10 discover` named, with the plant's value where it hides one."""
+    j = f.get("joint")
+    if f["name"] == "joint_compliance_linear" and j:
+        c = f["params"]["compliance"]
+        return f"J{j} spring {c:.3g} (plant {truth[j - 1]:.3g}) rad/(N·m)"
+    return f["label"] + " " + ", ".join(f"{k} {v:.3g}" for k, v in f["params"].items())
+
+
+def discovery_table(results):
+    """Per run with --discover: calibrated and extended mean / floor per load, what was named."""
+    rs = sorted((r for r in results if "failed" not in r and r.get("discovered") is not None),
+                key=lambda r: (r["friction_model"], r["friction_scale"], r["seed"]))
+    if not rs:
+        return
+    print("\n| seed | drives | friction | calibrated / floor 0 / 45 / 90 N | extended / floor 0 / 45 / 90 N "
+          "| named (plant's truth) | discovery says closed |")
+    print("|---|---|---|---|---|---|---|")
+    within, worse, j4 = 0, 0, []
+    for r in rs:
+        fl = r["floor_mm"]
+        cal = [l["calibrated_mean_mm"] / fl for l in r["loads"]]
+        ext = [l["extended_mean_mm"] / fl for l in r["loads"]]
+        within += all(e <= 1.1 for e in ext)
+        worse += any(e > c + EXTENDED_SLACK for c, e in zip(cal, ext))
+        truth = hidden_compliance(r["seed"])
+        for f in r["discovered"]:
+            if f["name"] == "joint_compliance_linear" and f.get("joint") == 4:
+                j4.append(f["params"]["compliance"] / truth[3] - 1)
+        named = "; ".join(named_text(f, truth) for f in r["discovered"]) or "nothing"
+        print(f"| {r['seed']} | {r['friction_model']} | ×{r['friction_scale']:g} "
+              f"| {' / '.join(f'{c:.2f}' for c in cal)} | {' / '.join(f'{e:.2f}' for e in ext)} "
+              f"| {named} | {'yes' if r['discovery']['gap_closed'] else 'no'} |")
+    j4_err = ""
+    if j4:
+        j4_err = (f", its compliance within {100 * max(abs(e) for e in j4):.0f} % of the plant's "
+                  f"(median {100 * statistics.median(abs(e) for e in j4):.0f} %)")
+    print(f"\nExtended within 1.1x the floor at every load: {within} of {len(rs)}; worse than calibrated "
+          f"by more than {EXTENDED_SLACK}x the floor at a load: {worse}; J4's hidden spring named: "
+          f"{len(j4)} of {len(rs)}{j4_err}.")
 
 
 def summary(results):
@@ -101,6 +166,7 @@ def summary(results):
         fmt = lambda v: f"{statistics.mean(v):.2f} ({max(v):.2f})" if v else "–"
         print(f"| {model} | ×{scale:g} | {len(rs)} ({failed}/{faulted}/{aborted}) | {' / '.join(ratios)} "
               f"| {fmt(still0)} / {fmt(still90)} | {fmt(track)} | {grav} |")
+    discovery_table(results)
 
 
 def main():

@@ -52,6 +52,12 @@ pub struct DiscoverArgs {
     /// Motor current → joint torque constants, N·m/A, six comma-separated (for `i1..i6` data).
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     torque_constants: Option<Vec<f64>>,
+    /// Joint torques from the start model's statics (its bodies and each row's hung load at
+    /// the row's resolver angles) instead of the data's torque or current columns, in both
+    /// sets: as `pa10 calibrate --model-torques`, for data gathered on drives whose currents
+    /// at rest carry held friction (docs/judge.md).
+    #[arg(long)]
+    model_torques: bool,
     /// Consider only these kinds of effect (comma-separated machine names).
     #[arg(long, value_delimiter = ',')]
     only: Option<Vec<String>>,
@@ -60,8 +66,12 @@ pub struct DiscoverArgs {
 /// `pa10 discover`.
 pub fn run(a: &DiscoverArgs) -> Result<()> {
     let model = a.model.load()?;
-    let data = load(&a.data)?;
-    let holdout = a.holdout.as_deref().map(load).transpose()?;
+    let mut data = load(&a.data)?;
+    let mut holdout = a.holdout.as_deref().map(load).transpose()?;
+    if a.model_torques {
+        data = data.with_model_torques(&model);
+        holdout = holdout.map(|h| h.with_model_torques(&model));
+    }
     let torque_constants = crate::calib_cmd::torque_constants(&a.torque_constants)?;
     let only = match &a.only {
         None => None,
