@@ -359,6 +359,9 @@ fn nothing_is_named_when_nothing_is_hidden() {
         assert!(d.steps.iter().all(|s| s.accepted.is_none()));
         assert_eq!(d.gap_after_mm, d.gap_before_mm);
         assert!(d.gap_closed, "{}", d.verdict);
+        // Nothing named: `--out` writes the starting model unchanged, not its refit.
+        let start = paper_model(false).unwrap();
+        assert_eq!(d.model.to_yaml(), start.to_yaml());
     }
 }
 
