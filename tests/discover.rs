@@ -118,6 +118,101 @@ fn the_model_file_compensates_the_run_time_effects_exactly_as_discovery_predicts
     }
 }
 
+/// A tool that sags, links that bend and a heavier tool, written into a model file as
+/// `pa10 discover` writes them: the model's loaded forward kinematics is discovery's forward
+/// model, its run-time correction undoes them, and a discovery started from it keeps them.
+#[test]
+fn load_effects_in_the_model_file_are_discoverys_forward_model() {
+    let m = perturbed_model(&mut rng(8));
+    let mut s = EffectState::from_model(&m, 50.0);
+    for (slot, v) in [
+        (Slot::ToolSag, 4e-6),
+        (Slot::Bending(1), 2e-6),
+        (Slot::Bending(3), 3e-6),
+        (Slot::Payload, 1.5),
+    ] {
+        s.set(slot, v);
+    }
+    let mut d = s.to_model().unwrap().data().clone();
+    for (name, joint, param, v) in [
+        ("tool_sag", None, "compliance", 4e-6),
+        ("link_bending", Some(2), "compliance", 2e-6),
+        ("link_bending", Some(4), "compliance", 3e-6),
+        ("payload_mass_error", None, "mass", 1.5),
+    ] {
+        d.discovered.push(pa10::model::EffectRecord {
+            name: name.into(),
+            joint,
+            params: [(param.to_string(), v)].into(),
+            stderr: Default::default(),
+            compensated: true,
+        });
+    }
+    let model = Model::new(d.clone()).unwrap();
+    let geom = s.geometry().unwrap();
+    let mut r = rng(9);
+    for k in 0..100 {
+        let q = random_q(&mut r, &m);
+        let load = 10.0 * (k % 10) as f64;
+        let tau: [f64; 6] = std::array::from_fn(|j| 20.0 * ((j as f64) - 2.5) * q[j].cos());
+        let o = obs(q, tau, load, 0.0, 0.0);
+        let expect = forward::predict(&s, &geom, &o);
+        let link = model
+            .link_from_motor(&q, Torques::Given(&tau), &[0.0; 6])
+            .unwrap()
+            .q_link;
+        let got = model.fk_loaded(&link, load);
+        let e = pa10::model::pose_error(&expect, &got);
+        assert!(e.norm() < 1e-12, "{e:?}");
+        // the run-time correction puts the loaded tool at the rigid pose (away from
+        // singularities; near one it stays small)
+        let c = model.load_correction(&link, load);
+        assert!(
+            max_diff(&c, &link) <= pa10::model::MAX_LOAD_CORRECTION + 1e-15,
+            "{k}: {c:?} vs {link:?}"
+        );
+        let miss = pa10::model::pose_error(&model.fk(&link), &model.fk_loaded(&c, load));
+        let sv = model.jacobian(&link).singular_values().min();
+        if sv > 0.05 {
+            assert!(
+                miss.fixed_rows::<3>(0).norm() < 1e-9,
+                "{k} {link:?} {miss:?}"
+            );
+        }
+    }
+    // the state of the model file is the state it was written from
+    let back = EffectState::from_model(&model, 50.0);
+    assert_eq!(
+        (back.tool_sag, back.bending, back.payload_kg),
+        (s.tool_sag, s.bending, s.payload_kg)
+    );
+    // out-of-range and incomplete records are refused by key, nothing built
+    let bad = |edit: &dyn Fn(&mut pa10::model::EffectRecord)| {
+        let mut d = d.clone();
+        edit(&mut d.discovered[0]);
+        Model::new(d).unwrap_err().to_string()
+    };
+    let e = bad(&|r| {
+        r.params.insert("compliance".into(), 1.0);
+    });
+    assert!(e.contains("discovered[0].params.compliance"), "{e}");
+    let e = bad(&|r| {
+        r.name = "link_bending".into();
+        r.joint = None;
+    });
+    assert!(e.contains("discovered[0].joint"), "{e}");
+    let e = bad(&|r| {
+        r.params.clear();
+    });
+    assert!(e.contains("missing"), "{e}");
+    // a record marked not compensated is a report only
+    let mut d2 = d.clone();
+    for r in &mut d2.discovered {
+        r.compensated = false;
+    }
+    assert!(Model::new(d2).unwrap().load_effects().is_empty());
+}
+
 #[test]
 fn frame_effects_move_the_target_as_documented() {
     let _cpu = crate::common::busy_lock();

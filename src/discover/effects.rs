@@ -381,6 +381,9 @@ impl Effect {
                 | Kind::GeometricDeparture
                 | Kind::GearRatioError
                 | Kind::Generic
+                | Kind::LinkBending
+                | Kind::PayloadMassError
+                | Kind::ToolSag
         )
     }
 }

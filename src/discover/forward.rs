@@ -8,7 +8,10 @@ use nalgebra::{Rotation3, Translation3, Vector3, Vector6};
 
 use super::effects::Slot;
 use crate::model::params::HAYATI_JOINT;
-use crate::model::{Frame, JointError, Model, ModelError, ModelFile, Stiffness, pose_error};
+use crate::model::{
+    Frame, JointError, LoadEffects, Model, ModelError, ModelFile, Stiffness, displace_by_load,
+    pose_error,
+};
 
 /// Every parameter of every effect, plus the model's geometry; zero means absent.
 #[derive(Debug, Clone, PartialEq)]
@@ -37,8 +40,9 @@ pub struct EffectState {
 }
 
 impl EffectState {
-    /// The state of `model`: its geometry, springs and joint errors; every other effect
-    /// zero. `gear_ratio` is used for joints without joint errors.
+    /// The state of `model`: its geometry, springs, joint errors and compensated load
+    /// effects (tool sag, link bending, tool mass); every other effect zero. `gear_ratio` is
+    /// used for joints without joint errors.
     pub fn from_model(model: &Model, gear_ratio: f64) -> Self {
         let d = model.data();
         let mut compliance = [0.0; 6];
@@ -59,6 +63,7 @@ impl EffectState {
         geom.stiffness = [None; 6];
         geom.joint_errors = [None; 6];
         geom.discovered.clear();
+        let load = model.load_effects();
         Self {
             geom,
             compliance,
@@ -66,10 +71,10 @@ impl EffectState {
             joint_err,
             base: [0.0; 6],
             thermal: [0.0; 6],
-            bending: [0.0; 6],
-            payload_kg: 0.0,
+            bending: load.bending,
+            payload_kg: load.payload_kg,
             tool_offset: [0.0; 3],
-            tool_sag: 0.0,
+            tool_sag: load.tool_sag,
         }
     }
 
@@ -117,10 +122,18 @@ impl EffectState {
     }
 
     /// The whole state as a model file the daemon loads: geometry (tool offset and base
-    /// correction folded in), springs of every compliant joint, joint errors. Effects with
-    /// no run-time form (thermal, bending, payload) are left out here; the caller records
-    /// them in `discovered`.
+    /// correction folded in), springs of every compliant joint, joint errors. Effects outside
+    /// the joints (thermal, bending, tool mass, tool sag) are left out here; the caller records
+    /// them in `discovered` (the load effects' ranges are checked here all the same).
     pub fn to_model(&self) -> Result<Model, ModelError> {
+        // the load effects' own ranges (written as records by the caller), checked here so
+        // a refit beyond them is a failed fit, never an aborted run
+        LoadEffects {
+            tool_sag: self.tool_sag,
+            bending: self.bending,
+            payload_kg: self.payload_kg,
+        }
+        .check()?;
         let mut d = self.geometry()?.data().clone();
         let tool = crate::model::frame_from_pose(d.tool.translation, d.tool.quaternion);
         let off = Translation3::new(
@@ -250,90 +263,19 @@ pub fn link_angles(s: &EffectState, obs: &Obs) -> [f64; 6] {
     })
 }
 
-/// The bending moment (N·m, base frame) carried at point `p` by everything fixed to DH
-/// frames ≥ `first_frame` and the tool force `force` at `p_tool`.
-fn moment_at(
-    geom: &Model,
-    f: &[Frame; 7],
-    p: &Vector3<f64>,
-    first_frame: usize,
-    p_tool: &Vector3<f64>,
-    force: &Vector3<f64>,
-) -> Vector3<f64> {
-    let mut m = (p_tool - p).cross(force);
-    for b in &geom.masses[..geom.n_masses] {
-        if b.frame >= first_frame {
-            let c = (f[b.frame] * nalgebra::Point3::from(b.com)).coords;
-            m += (c - p).cross(&(geom.gravity * b.mass));
-        }
-    }
-    m
-}
-
-/// Nominal length (m) of DH row `j` and its direction in the base frame: `a` along x of
-/// frame j+1, `d` along z of frame j.
-fn link_axis(geom: &Model, f: &[Frame; 7], j: usize) -> (f64, Vector3<f64>) {
-    let row = &geom.data().dh[j];
-    if row.a != 0.0 {
-        (row.a, f[j + 1].rotation * Vector3::x())
-    } else {
-        (row.d, f[j].rotation * Vector3::z())
-    }
-}
-
-/// Applies a rotation `theta` (rotation vector, base frame) about point `c` to `x`.
-fn rotate_about(x: &Frame, c: &Vector3<f64>, theta: &Vector3<f64>) -> Frame {
-    let r = Rotation3::new(*theta);
-    Frame::from_parts(
-        Translation3::from(r * (x.translation.vector - c) + c),
-        r * x.rotation,
-    )
-}
-
 /// The predicted target pose in the robot base frame. `geom` must be
 /// [`EffectState::geometry`] of `s`.
 pub fn predict(s: &EffectState, geom: &Model, obs: &Obs) -> Frame {
     let q = link_angles(s, obs);
     let f = geom.frames(&q);
     let off = Translation3::new(s.tool_offset[0], s.tool_offset[1], s.tool_offset[2]);
-    let mut x = f[6] * Frame::from_parts(off, Rotation3::identity()) * *geom.tool();
-    let needs_moment = s.bending.iter().any(|c| *c != 0.0);
-    let force = if needs_moment {
-        let g = geom.gravity();
-        let dir = if g.norm() > 0.0 {
-            g / g.norm()
-        } else {
-            -Vector3::z()
-        };
-        dir * obs.load_n + g * s.payload_kg
-    } else {
-        Vector3::zeros()
+    let x = f[6] * Frame::from_parts(off, Rotation3::identity()) * *geom.tool();
+    let e = LoadEffects {
+        tool_sag: s.tool_sag,
+        bending: s.bending,
+        payload_kg: s.payload_kg,
     };
-    let p_tool = x.translation.vector;
-    // From the flange back to the base: each change moves everything distal of it.
-    for j in (0..6).rev() {
-        if s.bending[j] != 0.0 {
-            let (a, b) = (f[j].translation.vector, f[j + 1].translation.vector);
-            let u = (b - a).normalize();
-            let m = moment_at(geom, &f, &a, j + 1, &p_tool, &force);
-            let theta = (m - u * m.dot(&u)) * s.bending[j];
-            x = rotate_about(&x, &(0.5 * (a + b)), &theta);
-        }
-        if s.thermal[j] != 0.0 {
-            let (len, u) = link_axis(geom, &f, j);
-            x.translation.vector += u * (len * s.thermal[j] * obs.thermal);
-        }
-    }
-    if s.tool_sag != 0.0 {
-        let g = geom.gravity();
-        let dir = if g.norm() > 0.0 {
-            g / g.norm()
-        } else {
-            -Vector3::z()
-        };
-        x.translation.vector += dir * (s.tool_sag * obs.load_n);
-    }
-    x
+    displace_by_load(geom, &f, x, obs.load_n, &e, &s.thermal, obs.thermal)
 }
 
 /// Residual of one observation: predicted minus measured pose (position m, orientation

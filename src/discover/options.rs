@@ -98,6 +98,19 @@ pub(super) fn model_slots(model: &Model) -> Vec<Slot> {
             );
         }
     }
+    // Load effects outside the joints a previous discovery wrote (compensated).
+    let load = model.load_effects();
+    s.extend(
+        (0..6)
+            .filter(|&j| load.bending[j] != 0.0)
+            .map(Slot::Bending),
+    );
+    if load.payload_kg != 0.0 {
+        s.push(Slot::Payload);
+    }
+    if load.tool_sag != 0.0 {
+        s.push(Slot::ToolSag);
+    }
     s
 }
 

@@ -353,5 +353,23 @@ pub(super) fn extended_model(
             compensated: f.run_time,
         })
         .collect();
+    // Load effects the starting model carried (its own earlier discovery), refitted here.
+    let mut kept = |name: &str, joint: Option<usize>, param: &str, v: f64| {
+        let found = effects.iter().any(|f| f.name == name && f.joint == joint);
+        if v != 0.0 && !found {
+            d.discovered.push(EffectRecord {
+                name: name.into(),
+                joint,
+                params: [(param.to_string(), v)].into(),
+                stderr: Default::default(),
+                compensated: true,
+            });
+        }
+    };
+    for j in 0..6 {
+        kept("link_bending", Some(j + 1), "compliance", state.bending[j]);
+    }
+    kept("payload_mass_error", None, "mass", state.payload_kg);
+    kept("tool_sag", None, "compliance", state.tool_sag);
     Ok(Model::new(d)?)
 }

@@ -20,6 +20,7 @@ mod frame;
 mod ik;
 mod joint_error;
 mod kinematics;
+mod load_effects;
 pub mod params;
 pub(crate) mod robot;
 mod statics;
@@ -33,6 +34,10 @@ pub use ik::{IkError, IkSolutions, MAX_SOLUTIONS};
 pub use joint_error::{DEFAULT_GEAR_RATIO, JointError};
 pub use kinematics::{
     Frame, IdentJacobian, Jacobian, frame_from_pose, pose_error, pose_parts, rotation_log,
+};
+pub use load_effects::{
+    LoadEffects, MAX_BENDING, MAX_LOAD_CORRECTION, MAX_PAYLOAD_ERROR_KG, MAX_TOOL_SAG,
+    displace as displace_by_load,
 };
 pub use params::{
     Departure, DhRow, PARAM_COUNT, ParamVector, STIFF_JOINTS, param_names, param_units,

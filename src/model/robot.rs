@@ -124,6 +124,8 @@ pub struct Model {
     pub(crate) gravity: Vector3<f64>,
     pub(crate) masses: [MassPoint; MAX_BODIES],
     pub(crate) n_masses: usize,
+    /// The compensated load effects outside the joints of `data.discovered`.
+    pub(crate) load_effects: super::load_effects::LoadEffects,
 }
 
 /// The PA10-6C structure of the standard DH table: twists and angle offsets.
@@ -209,7 +211,9 @@ impl Model {
                 com: Vector3::from(b.com),
             };
         }
+        let load_effects = super::load_effects::LoadEffects::from_records(&data.discovered)?;
         Ok(Self {
+            load_effects,
             joints,
             tool,
             tool_inv: tool.inverse(),

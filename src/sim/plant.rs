@@ -258,7 +258,7 @@ impl Plant for ModelPlant {
     }
 
     fn tool_pose(&self) -> Pose {
-        self.model.fk(&self.link_state().0)
+        self.model.fk_loaded(&self.link_state().0, self.load_n)
     }
 
     fn spring_torques(&self) -> Option<[f64; 6]> {

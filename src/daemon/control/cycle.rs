@@ -161,10 +161,16 @@ impl Controller {
         }
     }
 
-    /// Step 4b: the motor target (rad) that puts the link at the setpoint under `tau`.
+    /// Step 4b: the motor target (rad) that puts the link at the setpoint under `tau` — and,
+    /// when the model holds load effects outside the joints (a sagging tool, a bending link:
+    /// [`Model::load_correction`](crate::model::Model::load_correction)), the links where
+    /// they put the tool at the setpoint's rigid pose under the payload.
     pub(super) fn compensated_target(&self, tau: &[f64; 6]) -> Result<[f64; 6], Fault> {
+        let q = self
+            .model
+            .load_correction(&self.setpoint.q, self.p.payload_n);
         self.model
-            .compensate(&self.setpoint.q, Torques::Given(tau), &self.direction)
+            .compensate(&q, Torques::Given(tau), &self.direction)
             .map(|c| c.q_motor)
             .map_err(|_| Fault::Setpoint(MoveError::NonFinite("compensated target")))
     }
