@@ -56,10 +56,13 @@ const CAL_LOADS: [f64; 3] = [0.0, 22.0, 44.0];
 const VAL_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
 const PERIOD_S: f64 = 0.002;
 /// How much worse than the calibrated model's mean error the extended model's may be, as a
-/// fraction of the floor, before `--check` calls it worse: the two are measured at nearly the
-/// same setpoints of the same novel poses, so their difference carries little of the resolver
-/// noise (tests/mujoco/study.py uses the same).
-const EXTENDED_SLACK: f64 = 0.1;
+/// fraction of the floor, before `--check` calls it worse, on creeping drives: one model
+/// validated twice at the same poses differs by up to 0.13× the floor at a load (seed 4, full
+/// run, nothing named; docs/judge.md §9). On sticking drives a stuck drive rests up to
+/// 0.5 mrad (J2) from its target when the arm is still, and the same model validated twice
+/// differs by up to 0.74× the floor: the comparison is not made there (tests/mujoco/study.py
+/// uses the same rule).
+const EXTENDED_SLACK: f64 = 0.15;
 
 struct Opts {
     json: bool,
@@ -315,8 +318,9 @@ fn main() -> Result<()> {
 /// What the judge requires of the daemon (`--check`; the reasons it does not hold): the
 /// calibrated model's mean error within `ratio` × the Monte Carlo floor at every load (1.3 on
 /// the full run, 2 on the quick one: 8 calibration poses, 2 validation poses), the nominal
-/// model three times worse at 90 N, with `--discover` the extended model not worse than the
-/// calibrated one (by more than [`EXTENDED_SLACK`] × the floor), tracking better than nominal,
+/// model three times worse at 90 N, with `--discover` on creeping drives the extended model
+/// not worse than the calibrated one (by more than [`EXTENDED_SLACK`] × the floor), tracking
+/// better than nominal,
 /// the loaded wrist's ring decaying, and no run ending early.
 fn check(o: &Outcome, ratio: f64) -> Vec<String> {
     let mut bad = Vec::new();
@@ -328,7 +332,11 @@ fn check(o: &Outcome, ratio: f64) -> Vec<String> {
             ));
         }
     }
-    for l in &o.loads {
+    for l in o
+        .loads
+        .iter()
+        .filter(|_| o.friction_model == FrictionModel::Creep)
+    {
         if let Some(e) = l.extended_mean_mm
             && e > l.calibrated_mean_mm + EXTENDED_SLACK * o.floor_mm
         {

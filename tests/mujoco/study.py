@@ -25,10 +25,12 @@ import sys
 
 RUN_TIMEOUT_S = 1800
 HERE = os.path.dirname(os.path.abspath(__file__))
-# An extended model's mean error may exceed the calibrated one's by this fraction of the floor
-# (the validation poses' noise on two models measured at nearly the same setpoints) before the
-# check calls it worse; the judge's --check uses the same.
-EXTENDED_SLACK = 0.1
+# On creeping drives an extended model's mean error may exceed the calibrated one's by this
+# fraction of the floor before the check calls it worse: one model validated twice differs by up
+# to 0.13x the floor at a load. On sticking drives (a stuck drive rests up to 0.5 mrad from its
+# target; the same model twice differs by up to 0.74x) the comparison is reported, not checked.
+# The judge's --check uses the same rule.
+EXTENDED_SLACK = 0.15
 
 
 def seeds(text):
@@ -80,7 +82,8 @@ def problems(r, ratio):
         if ratio is not None and l["calibrated_mean_mm"] > ratio * r["floor_mm"]:
             bad.append(f"{l['load_n']:.0f} N: {l['calibrated_mean_mm'] / r['floor_mm']:.2f}x the floor")
         ext = l.get("extended_mean_mm")
-        if ext is not None and ext > l["calibrated_mean_mm"] + EXTENDED_SLACK * r["floor_mm"]:
+        if (ext is not None and r["friction_model"] == "creep"
+                and ext > l["calibrated_mean_mm"] + EXTENDED_SLACK * r["floor_mm"]):
             bad.append(f"{l['load_n']:.0f} N: extended {ext:.3f} mm worse than calibrated "
                        f"{l['calibrated_mean_mm']:.3f} mm")
     return bad
@@ -120,7 +123,7 @@ def discovery_table(results):
         cal = [l["calibrated_mean_mm"] / fl for l in r["loads"]]
         ext = [l["extended_mean_mm"] / fl for l in r["loads"]]
         within += all(e <= 1.1 for e in ext)
-        worse += any(e > c + EXTENDED_SLACK for c, e in zip(cal, ext))
+        worse += r["friction_model"] == "creep" and any(e > c + EXTENDED_SLACK for c, e in zip(cal, ext))
         truth = hidden_compliance(r["seed"])
         for f in r["discovered"]:
             if f["name"] == "joint_compliance_linear" and f.get("joint") == 4:
@@ -134,7 +137,7 @@ def discovery_table(results):
         j4_err = (f", its compliance within {100 * max(abs(e) for e in j4):.0f} % of the plant's "
                   f"(median {100 * statistics.median(abs(e) for e in j4):.0f} %)")
     print(f"\nExtended within 1.1x the floor at every load: {within} of {len(rs)}; worse than calibrated "
-          f"by more than {EXTENDED_SLACK}x the floor at a load: {worse}; J4's hidden spring named: "
+          f"by more than {EXTENDED_SLACK}x the floor at a load (creeping drives): {worse}; J4's hidden spring named: "
           f"{len(j4)} of {len(rs)}{j4_err}.")
 
 
