@@ -133,7 +133,8 @@ impl EffectState {
             bending: self.bending,
             payload_kg: self.payload_kg,
         }
-        .check()?;
+        .check()
+        .map_err(|(key, reason)| ModelError::Invalid { key, reason })?;
         let mut d = self.geometry()?.data().clone();
         let tool = crate::model::frame_from_pose(d.tool.translation, d.tool.quaternion);
         let off = Translation3::new(

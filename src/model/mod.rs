@@ -21,6 +21,7 @@ mod ik;
 mod joint_error;
 mod kinematics;
 mod load_effects;
+mod loaded;
 pub mod params;
 pub(crate) mod robot;
 mod statics;
@@ -35,10 +36,8 @@ pub use joint_error::{DEFAULT_GEAR_RATIO, JointError};
 pub use kinematics::{
     Frame, IdentJacobian, Jacobian, frame_from_pose, pose_error, pose_parts, rotation_log,
 };
-pub use load_effects::{
-    LoadEffects, MAX_BENDING, MAX_LOAD_CORRECTION, MAX_PAYLOAD_ERROR_KG, MAX_TOOL_SAG,
-    displace as displace_by_load,
-};
+pub use load_effects::{LoadEffects, MAX_BENDING, MAX_PAYLOAD_ERROR_KG, MAX_TOOL_SAG};
+pub use loaded::{MAX_LOAD_CORRECTION, displace as displace_by_load};
 pub use params::{
     Departure, DhRow, PARAM_COUNT, ParamVector, STIFF_JOINTS, param_names, param_units,
 };

@@ -211,7 +211,8 @@ impl Model {
                 com: Vector3::from(b.com),
             };
         }
-        let load_effects = super::load_effects::LoadEffects::from_records(&data.discovered)?;
+        let load_effects = super::load_effects::LoadEffects::from_records(&data.discovered)
+            .map_err(|(key, reason)| invalid(key, reason))?;
         Ok(Self {
             load_effects,
             joints,
