@@ -739,7 +739,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             let path = paths[mi].display().to_string();
             ask(&ls, ApiRequest::LoadModel { path })
                 .with_context(|| format!("validation pose {}: loading the {name} model", k + 1))?;
-            let reversed = mi % 2 == 1;
+            // the calibrated and extended models take the loads in the same order
+            let reversed = mi >= 1;
             match validate_pose(&mut ls, m, target, &truth_base, reversed) {
                 Ok(v) => {
                     move_settle_s[mi].push(v.after_move_s);
@@ -1053,8 +1054,15 @@ struct PoseResult {
     rest0: Option<([f64; 6], [f64; 6])>,
 }
 
-/// Moves `model`'s estimate of `target` (instrument frame) and measures it at 0/45/90 N (in
-/// reverse order when `reversed`) by MuJoCo's tool pose; any fault is an error.
+/// Every joint's offset of the approach configuration from a validation pose's, rad: each
+/// model reaches each pose by the same move (a stuck drive rests where its path left it, so
+/// two models approaching from each other's resting places would not be compared alike).
+const APPROACH_OFFSET: [f64; 6] = [0.05, 0.05, -0.05, 0.05, 0.05, 0.05];
+
+/// Moves to the approach configuration of `target` (its inverse kinematics on `model` plus
+/// [`APPROACH_OFFSET`]), then to `model`'s estimate of `target` (instrument frame), and
+/// measures it at 0/45/90 N (in reverse order when `reversed`) by MuJoCo's tool pose; any
+/// fault is an error.
 fn validate_pose(
     ls: &mut Lockstep,
     model: &Model,
@@ -1062,7 +1070,13 @@ fn validate_pose(
     truth_base: &Frame,
     reversed: bool,
 ) -> Result<PoseResult> {
-    let (position, quaternion) = pose_parts(&(model.base_from_instrument() * target));
+    let base_target = model.base_from_instrument() * target;
+    let q = model
+        .ik_nearest(&base_target, &status(ls)?.setpoint)
+        .map_err(|e| anyhow!("the validation pose: {e}"))?;
+    let approach = std::array::from_fn(|j| q[j] + APPROACH_OFFSET[j]);
+    move_settle(ls, ApiRequest::MoveJoints { q: approach }).context("the approach")?;
+    let (position, quaternion) = pose_parts(&base_target);
     let after_move_s = move_settle(
         ls,
         ApiRequest::MovePose {
