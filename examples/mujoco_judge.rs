@@ -87,6 +87,9 @@ struct Opts {
     /// Gather a held-out campaign, run `pa10 discover` from the calibrated model and validate
     /// the extended model beside it.
     discover: bool,
+    /// With `--discover`: the extended model recalibrated by `pa10 calibrate` (the paper's
+    /// parameters refitted, the named effects held at discovery's estimates).
+    recalibrate: bool,
 }
 
 fn opts() -> Result<Opts> {
@@ -105,6 +108,7 @@ fn opts() -> Result<Opts> {
         check_ratio: None,
         trace: None,
         discover: false,
+        recalibrate: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -115,6 +119,7 @@ fn opts() -> Result<Opts> {
             "--check" => o.check = true,
             "--identify" => o.identify = true,
             "--discover" => o.discover = true,
+            "--recalibrate" => o.recalibrate = true,
             "--no-identify" => o.identify = false,
             "--seed" => o.seed = value("--seed")?.parse().context("--seed: an integer")?,
             "--friction" => {
@@ -172,7 +177,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --discover, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
             ),
         }
     }
@@ -697,7 +702,12 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                 seed: o.seed,
                 ..Default::default()
             };
-            let d = discover(&full, &data, Some(&h), &dopts).context("pa10 discover")?;
+            let mut d = discover(&full, &data, Some(&h), &dopts).context("pa10 discover")?;
+            if o.recalibrate && !d.effects.is_empty() {
+                d.model = calibrate(&d.model, &data, None, &copts, &|_| {})
+                    .context("recalibrating the extended model")?
+                    .model;
+            }
             Some((d, t.elapsed().as_secs_f64(), h.rows.len()))
         }
         None => None,
