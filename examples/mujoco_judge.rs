@@ -15,7 +15,13 @@
 //! 3. Tracking of `docs/motion.md`'s six-point trajectory at 0 and 90 N: MuJoCo's link angles
 //!    against the trajectory's desired positions, every cycle.
 //!
-//! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--seed N]
+//! With `--discover` the loop closes (docs/judge.md §9): a held-out campaign through the
+//! daemon, `pa10 discover` from the calibrated model, the extended model (with `--recalibrate`
+//! recalibrated by `pa10 calibrate`'s method, the named effects held) loaded into the daemon
+//! and validated beside the others.
+//!
+//! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--discover]
+//! [--recalibrate] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
 //! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--check-ratio R] [--trace FILE]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
