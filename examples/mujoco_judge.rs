@@ -16,12 +16,12 @@
 //!    against the trajectory's desired positions, every cycle.
 //!
 //! With `--discover` the loop closes (docs/judge.md §9): a held-out campaign through the
-//! daemon, `pa10 discover` from the calibrated model, the extended model (with `--recalibrate`
-//! recalibrated by `pa10 calibrate`'s method, the named effects held) loaded into the daemon
-//! and validated beside the others.
+//! daemon, `pa10 discover` from the calibrated model, the extended model recalibrated by
+//! `pa10 calibrate`'s method with the named effects held (`--no-recalibrate`: discovery's own
+//! refit) loaded into the daemon and validated beside the others.
 //!
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--discover]
-//! [--recalibrate] [--seed N]
+//! [--no-recalibrate] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
 //! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--check-ratio R] [--trace FILE]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
@@ -94,7 +94,8 @@ struct Opts {
     /// the extended model beside it.
     discover: bool,
     /// With `--discover`: the extended model recalibrated by `pa10 calibrate` (the paper's
-    /// parameters refitted, the named effects held at discovery's estimates).
+    /// parameters refitted, the named effects held at discovery's estimates); the default,
+    /// `--no-recalibrate` keeps discovery's own refit.
     recalibrate: bool,
 }
 
@@ -114,7 +115,7 @@ fn opts() -> Result<Opts> {
         check_ratio: None,
         trace: None,
         discover: false,
-        recalibrate: false,
+        recalibrate: true,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -126,6 +127,7 @@ fn opts() -> Result<Opts> {
             "--identify" => o.identify = true,
             "--discover" => o.discover = true,
             "--recalibrate" => o.recalibrate = true,
+            "--no-recalibrate" => o.recalibrate = false,
             "--no-identify" => o.identify = false,
             "--seed" => o.seed = value("--seed")?.parse().context("--seed: an integer")?,
             "--friction" => {
@@ -183,7 +185,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --discover, --recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --recalibrate, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
             ),
         }
     }
