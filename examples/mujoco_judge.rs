@@ -66,7 +66,7 @@ const PERIOD_S: f64 = 0.002;
 /// validated twice at the same poses differs by up to 0.12× the floor at a load (seed 4, full
 /// run, nothing named; docs/judge.md §9). On sticking drives a stuck drive rests up to
 /// 0.5 mrad (J2) from its target when the arm is still; the comparison is reported there, not
-/// checked (docs/judge.md §9: the extended model is worse at 0 N on 4 of 8 seeds).
+/// checked (docs/judge.md §9: the extended model is worse at 0 N on 3 of 8 seeds).
 /// tests/mujoco/study.py uses the same rule.
 const EXTENDED_SLACK: f64 = 0.15;
 
@@ -126,7 +126,6 @@ fn opts() -> Result<Opts> {
             "--check" => o.check = true,
             "--identify" => o.identify = true,
             "--discover" => o.discover = true,
-            "--recalibrate" => o.recalibrate = true,
             "--no-recalibrate" => o.recalibrate = false,
             "--no-identify" => o.identify = false,
             "--seed" => o.seed = value("--seed")?.parse().context("--seed: an integer")?,
@@ -185,7 +184,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --discover, --recalibrate, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
             ),
         }
     }
@@ -333,8 +332,7 @@ fn main() -> Result<()> {
 /// the full run, 2 on the quick one: 8 calibration poses, 2 validation poses), the nominal
 /// model three times worse at 90 N, with `--discover` on creeping drives the extended model
 /// not worse than the calibrated one (by more than [`EXTENDED_SLACK`] × the floor), tracking
-/// better than nominal,
-/// the loaded wrist's ring decaying, and no run ending early.
+/// better than nominal, the loaded wrist's ring decaying, and no run ending early.
 fn check(o: &Outcome, ratio: f64) -> Vec<String> {
     let mut bad = Vec::new();
     for l in &o.loads {
@@ -689,7 +687,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         ..Default::default()
     };
     // With the daemon's torques from the model, the fit's too (the currents carry friction).
-    let data = if ["model", "estimated"].contains(&o.torque_source.as_str()) {
+    let model_torques = ["model", "estimated"].contains(&o.torque_source.as_str());
+    let data = if model_torques {
         data.with_model_torques(&base)
     } else {
         data
@@ -699,7 +698,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     // 2b. `pa10 discover` from the calibrated model with the held-out campaign.
     let discovery = match &holdout {
         Some(h) => {
-            let h = if ["model", "estimated"].contains(&o.torque_source.as_str()) {
+            let h = if model_torques {
                 h.with_model_torques(&base)
             } else {
                 h.clone()
@@ -723,15 +722,9 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
 
     // 3. Novel poses (instrument frame) at 0/45/90 N, each model loaded into the daemon.
     let n_val = if o.quick { 2 } else { 6 };
-    let mut targets: Vec<Frame> = Vec::new();
-    while targets.len() < n_val {
-        let t = random_pose(&mut rng, [0.40, -0.25, -0.10], [0.75, 0.25, 0.30]);
-        let p = t.translation.vector;
-        let reference = [p.y.atan2(p.x), 0.3, 1.6, 0.0, 1.1, 0.0];
-        if nominal.ik_nearest(&t, &reference).is_ok() {
-            targets.push(placed.base_from_instrument().inverse() * t);
-        }
-    }
+    let targets: Vec<Frame> = (0..n_val)
+        .map(|_| placed.base_from_instrument().inverse() * novel_pose(&nominal, &mut rng).0)
+        .collect();
     let truth_base = *truth.model.base_from_instrument();
     let mut named: Vec<(&str, &Model)> = vec![("nominal", &placed), ("calibrated", &full)];
     if let Some((d, _, _)) = &discovery {
@@ -879,19 +872,24 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     })
 }
 
-/// `n` novel configurations (ids `H1`…) for random tool poses in the validation volume that the
-/// nominal model reaches from an elbow-up reference.
-fn novel_configs(nominal: &Model, n: usize, rng: &mut Pcg64) -> Vec<(String, [f64; 6])> {
-    let mut out = Vec::new();
-    while out.len() < n {
+/// A random tool pose in the validation volume (base frame) that the nominal model reaches
+/// from an elbow-up reference, and those joint angles (rad): drawn until one is reachable.
+fn novel_pose(nominal: &Model, rng: &mut Pcg64) -> (Frame, [f64; 6]) {
+    loop {
         let t = random_pose(rng, [0.40, -0.25, -0.10], [0.75, 0.25, 0.30]);
         let p = t.translation.vector;
         let reference = [p.y.atan2(p.x), 0.3, 1.6, 0.0, 1.1, 0.0];
         if let Ok(q) = nominal.ik_nearest(&t, &reference) {
-            out.push((format!("H{}", out.len() + 1), q));
+            return (t, q);
         }
     }
-    out
+}
+
+/// `n` novel configurations (ids `H1`…) of [`novel_pose`].
+fn novel_configs(nominal: &Model, n: usize, rng: &mut Pcg64) -> Vec<(String, [f64; 6])> {
+    (1..=n)
+        .map(|k| (format!("H{k}"), novel_pose(nominal, rng).1))
+        .collect()
 }
 
 /// A campaign gathered through the daemon as a lab does: each of `configs` (joint angles, rad)

@@ -348,13 +348,10 @@ fn load_effects_outside_the_joints_are_compensated_at_run_time() {
         ("tool_sag", None, "compliance", 5e-6),
         ("link_bending", Some(2), "compliance", 2e-6),
     ] {
-        d.discovered.push(pa10::model::EffectRecord {
-            name: name.into(),
-            joint,
-            params: [(param.to_string(), v)].into(),
-            stderr: Default::default(),
-            compensated: true,
-        });
+        d.discovered
+            .push(pa10::model::EffectRecord::compensated_one(
+                name, joint, param, v,
+            ));
     }
     truth.model = Model::new(d).unwrap();
     let with = truth.model.clone();

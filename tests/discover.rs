@@ -140,13 +140,10 @@ fn load_effects_in_the_model_file_are_discoverys_forward_model() {
         ("link_bending", Some(4), "compliance", 3e-6),
         ("payload_mass_error", None, "mass", 1.5),
     ] {
-        d.discovered.push(pa10::model::EffectRecord {
-            name: name.into(),
-            joint,
-            params: [(param.to_string(), v)].into(),
-            stderr: Default::default(),
-            compensated: true,
-        });
+        d.discovered
+            .push(pa10::model::EffectRecord::compensated_one(
+                name, joint, param, v,
+            ));
     }
     let model = Model::new(d.clone()).unwrap();
     let geom = s.geometry().unwrap();

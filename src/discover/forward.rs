@@ -110,6 +110,15 @@ impl EffectState {
         }
     }
 
+    /// The state's load effects outside the joints (tool sag, link bending, tool mass).
+    pub fn load_effects(&self) -> LoadEffects {
+        LoadEffects {
+            tool_sag: self.tool_sag,
+            bending: self.bending,
+            payload_kg: self.payload_kg,
+        }
+    }
+
     /// The geometry as a rigid [`Model`] with the base correction folded in.
     pub fn geometry(&self) -> Result<Model, ModelError> {
         let mut d = self.geom.clone();
@@ -128,13 +137,9 @@ impl EffectState {
     pub fn to_model(&self) -> Result<Model, ModelError> {
         // the load effects' own ranges (written as records by the caller), checked here so
         // a refit beyond them is a failed fit, never an aborted run
-        LoadEffects {
-            tool_sag: self.tool_sag,
-            bending: self.bending,
-            payload_kg: self.payload_kg,
-        }
-        .check()
-        .map_err(|(key, reason)| ModelError::Invalid { key, reason })?;
+        self.load_effects()
+            .check()
+            .map_err(|(key, reason)| ModelError::Invalid { key, reason })?;
         let mut d = self.geometry()?.data().clone();
         let tool = crate::model::frame_from_pose(d.tool.translation, d.tool.quaternion);
         let off = Translation3::new(
@@ -271,12 +276,15 @@ pub fn predict(s: &EffectState, geom: &Model, obs: &Obs) -> Frame {
     let f = geom.frames(&q);
     let off = Translation3::new(s.tool_offset[0], s.tool_offset[1], s.tool_offset[2]);
     let x = f[6] * Frame::from_parts(off, Rotation3::identity()) * *geom.tool();
-    let e = LoadEffects {
-        tool_sag: s.tool_sag,
-        bending: s.bending,
-        payload_kg: s.payload_kg,
-    };
-    displace_by_load(geom, &f, x, obs.load_n, &e, &s.thermal, obs.thermal)
+    displace_by_load(
+        geom,
+        &f,
+        x,
+        obs.load_n,
+        &s.load_effects(),
+        &s.thermal,
+        obs.thermal,
+    )
 }
 
 /// Residual of one observation: predicted minus measured pose (position m, orientation

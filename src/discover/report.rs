@@ -357,13 +357,8 @@ pub(super) fn extended_model(
     let mut kept = |name: &str, joint: Option<usize>, param: &str, v: f64| {
         let found = effects.iter().any(|f| f.name == name && f.joint == joint);
         if v != 0.0 && !found {
-            d.discovered.push(EffectRecord {
-                name: name.into(),
-                joint,
-                params: [(param.to_string(), v)].into(),
-                stderr: Default::default(),
-                compensated: true,
-            });
+            d.discovered
+                .push(EffectRecord::compensated_one(name, joint, param, v));
         }
     };
     for j in 0..6 {

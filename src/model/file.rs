@@ -230,6 +230,20 @@ pub struct EffectRecord {
     pub compensated: bool,
 }
 
+impl EffectRecord {
+    /// A compensated effect with one parameter `param` = `value` (SI) and no standard error,
+    /// e.g. `EffectRecord::compensated_one("tool_sag", None, "compliance", 2e-6)`.
+    pub fn compensated_one(name: &str, joint: Option<usize>, param: &str, value: f64) -> Self {
+        Self {
+            name: name.into(),
+            joint,
+            params: [(param.to_string(), value)].into(),
+            stderr: BTreeMap::new(),
+            compensated: true,
+        }
+    }
+}
+
 /// A rigid body whose weight the joints carry.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -17,6 +17,18 @@ pub const MAX_BENDING: f64 = 1e-4;
 /// Largest accepted unaccounted tool mass, kg (either sign).
 pub const MAX_PAYLOAD_ERROR_KG: f64 = 20.0;
 
+/// `v` within ±`max` (in `unit`) and finite, else `(key, reason)`.
+fn within(key: String, v: f64, max: f64, unit: &str) -> Result<(), (String, String)> {
+    if v.is_finite() && v.abs() <= max {
+        Ok(())
+    } else {
+        Err((
+            key,
+            format!("must be finite and within ±{max:e} {unit}, got {v}"),
+        ))
+    }
+}
+
 /// Load effects outside the joints; all zero for a model without them.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct LoadEffects {
@@ -39,16 +51,6 @@ impl LoadEffects {
     /// effect's parameter (`tool_sag.compliance`, `link_bending[row].compliance`,
     /// `payload_mass_error.mass`).
     pub fn check(&self) -> Result<(), (String, String)> {
-        let within = |key: String, v: f64, max: f64, unit: &str| {
-            if v.is_finite() && v.abs() <= max {
-                Ok(())
-            } else {
-                Err((
-                    key,
-                    format!("must be finite and within ±{max:e} {unit}, got {v}"),
-                ))
-            }
-        };
         within(
             "tool_sag.compliance".into(),
             self.tool_sag,
@@ -85,13 +87,7 @@ impl LoadEffects {
                         format!("missing: a compensated `{}` needs it ({unit})", r.name),
                     )
                 })?;
-                if !v.is_finite() || v.abs() > max {
-                    return Err((
-                        key,
-                        format!("must be finite and within ±{max:e} {unit}, got {v}"),
-                    ));
-                }
-                Ok(v)
+                within(key, v, max, unit).map(|()| v)
             };
             match r.name.as_str() {
                 "tool_sag" => out.tool_sag = param("compliance", MAX_TOOL_SAG, "m/N")?,

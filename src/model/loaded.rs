@@ -135,13 +135,8 @@ impl Model {
     /// ```
     /// use pa10::model::{EffectRecord, Model};
     /// let mut d = Model::nominal().data().clone();
-    /// d.discovered.push(EffectRecord {
-    ///     name: "tool_sag".into(),
-    ///     joint: None,
-    ///     params: [("compliance".to_string(), 2e-6)].into(), // 2 µm per N
-    ///     stderr: Default::default(),
-    ///     compensated: true,
-    /// });
+    /// // 2 µm per N
+    /// d.discovered.push(EffectRecord::compensated_one("tool_sag", None, "compliance", 2e-6));
     /// let m = Model::new(d).unwrap();
     /// let q = [0.1, 0.6, 1.2, 0.0, 1.0, 0.0];
     /// let (rigid, sagging) = (m.fk(&q), m.fk_loaded(&q, 90.0));
