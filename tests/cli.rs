@@ -837,6 +837,70 @@ fn the_mujoco_config_checks_and_a_bad_plant_section_is_refused_by_key() {
 /// `pa10 identify` on the simulated arm (the in-process plant: no friction): the identified
 /// bodies give the hidden truth's gravity torques (its masses ±10 % and a 2.4 kg tooling the
 /// nominal model does not know) far better than the nominal model does.
+/// `pa10 identify --known-weight`: a configuration whose torque constants are 10 % high on J2
+/// and 5 % low on J3 (the simulated drives are the simulator's) is caught against a 90 N weight
+/// the simulation hangs, the right ones pass, and a model without a tool is refused.
+#[test]
+fn identify_checks_the_torque_constants_against_a_known_weight() {
+    let _cpu = crate::common::busy_lock();
+    let dir = std::env::temp_dir().join(format!("pa10-ktcheck-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let src = concat!(env!("CARGO_MANIFEST_DIR"), "/config/sim.yaml");
+    let text = std::fs::read_to_string(src).unwrap();
+    let wrong = "torque_constants: [15.0, 33.0, 14.25, 5.0, 5.0, 2.0]";
+    let cfg = dir.join("sim.yaml");
+    std::fs::write(
+        &cfg,
+        text.replace("torque_constants: [15.0, 30.0, 15.0, 5.0, 5.0, 2.0]", wrong),
+    )
+    .unwrap();
+    std::fs::copy(
+        concat!(env!("CARGO_MANIFEST_DIR"), "/config/model-nominal.yaml"),
+        dir.join("model-nominal.yaml"),
+    )
+    .unwrap();
+    assert!(std::fs::read_to_string(&cfg).unwrap().contains(wrong));
+    let out = dir.join("identified.yaml");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "identify",
+            "--simulate",
+            cfg.to_str().unwrap(),
+            "--waypoints",
+            "4",
+            "--out",
+            out.to_str().unwrap(),
+            "--known-weight",
+            "90",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        pa10(&args)
+    };
+    let refused = run(&[]);
+    assert!(!refused.status.success());
+    assert!(
+        String::from_utf8_lossy(&refused.stderr).contains("--tool"),
+        "{}",
+        String::from_utf8_lossy(&refused.stderr)
+    );
+    assert!(!out.exists(), "a refusal writes nothing");
+    let o = run(&["--tool", "0", "0", "0.35", "1", "0", "0", "0"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = stdout_json(&o);
+    let c = &v["torque_constant_check"];
+    let f = |key: &str, j: usize| c[key][j].as_f64().unwrap();
+    let b = |key: &str, j: usize| c[key][j].as_bool().unwrap();
+    assert!(!b("seen", 0), "J1's axis is vertical: {c}");
+    assert!((f("ratio", 1) - 1.1).abs() < 0.01 && b("off", 1), "{c}");
+    assert!((f("ratio", 2) - 0.95).abs() < 0.01 && b("off", 2), "{c}");
+    assert!((f("corrected", 1) - 30.0).abs() < 0.3, "{c}");
+    for j in [3, 4] {
+        assert!(b("seen", j) && !b("off", j), "J{}: {c}", j + 1);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn identify_recovers_the_hidden_gravity_through_the_daemon() {
     let _cpu = crate::common::busy_lock();

@@ -30,7 +30,7 @@ use crate::model::{Body, BodySigma, ExternalLoad, Friction, Model, ModelError};
 /// DH frames whose carried mass is identified: upper arm, forearm, wrist, flange (tooling).
 pub const FRAMES: [usize; 4] = [2, 3, 5, 6];
 /// Gravity parameters: four per frame of [`FRAMES`].
-const NG: usize = 4 * FRAMES.len();
+pub(crate) const NG: usize = 4 * FRAMES.len();
 /// Every parameter: gravity, then Coulomb and viscous per joint.
 const NP: usize = NG + 12;
 
@@ -153,7 +153,7 @@ pub fn gravity_regressor(model: &Model, q: &[f64; 6]) -> [[f64; NG]; 6] {
 
 /// The start model's bodies of [`FRAMES`] as their parameters (bodies of other frames are not
 /// identified: [`identify`] takes their torques as known and [`Identified::apply`] keeps them).
-fn prior_params(model: &Model) -> [f64; NG] {
+pub(crate) fn prior_params(model: &Model) -> [f64; NG] {
     let mut phi = [0.0; NG];
     for b in &model.data().bodies {
         if let Some(k) = FRAMES.iter().position(|&f| f == b.frame) {
@@ -164,6 +164,33 @@ fn prior_params(model: &Model) -> [f64; NG] {
         }
     }
     phi
+}
+
+/// Per sample: the gravity regressor at its angles, and the torques of the bodies outside
+/// [`FRAMES`] (known: the model's statics less what its [`FRAMES`] bodies give), N·m.
+pub(crate) fn regressors(model: &Model, samples: &[Sample]) -> Vec<([[f64; NG]; 6], [f64; 6])> {
+    let prior = prior_params(model);
+    samples
+        .iter()
+        .map(|s| {
+            let y = gravity_regressor(model, &s.q);
+            let all = model.static_torques(&s.q, &ExternalLoad::NONE);
+            let known =
+                std::array::from_fn(|j| all[j] - (0..NG).map(|p| y[j][p] * prior[p]).sum::<f64>());
+            (y, known)
+        })
+        .collect()
+}
+
+/// The weak prior's weight on gravity parameter `p` (1/σ², σ = [`PRIOR_MASS_KG`] for a mass,
+/// [`PRIOR_MOMENT_KGM`] for a first moment).
+pub(crate) fn prior_weight(p: usize) -> f64 {
+    let s0 = if p.is_multiple_of(4) {
+        PRIOR_MASS_KG
+    } else {
+        PRIOR_MOMENT_KGM
+    };
+    1.0 / (s0 * s0)
 }
 
 /// What [`identify`] found.
@@ -219,18 +246,7 @@ pub fn identify(model: &Model, samples: &[Sample]) -> Result<Identified, Identif
         .flat_map(|(i, s)| (0..6).filter(move |&j| s.usable[j]).map(move |j| (i, j)))
         .collect();
     let prior = prior_params(model);
-    // per sample: the regressor, and the torques of the bodies outside FRAMES (known: the
-    // model's statics less what its FRAMES bodies give)
-    let regs: Vec<([[f64; NG]; 6], [f64; 6])> = samples
-        .iter()
-        .map(|s| {
-            let y = gravity_regressor(model, &s.q);
-            let all = model.static_torques(&s.q, &ExternalLoad::NONE);
-            let known =
-                std::array::from_fn(|j| all[j] - (0..NG).map(|p| y[j][p] * prior[p]).sum::<f64>());
-            (y, known)
-        })
-        .collect();
+    let regs = regressors(model, samples);
     let mut a = DMatrix::<f64>::zeros(rows.len(), NP);
     let mut b = DVector::<f64>::zeros(rows.len());
     let mut counts = [0usize; 6];
@@ -258,13 +274,8 @@ pub fn identify(model: &Model, samples: &[Sample]) -> Result<Identified, Identif
             rhs += w * row.transpose() * b[r];
         }
         for p in 0..NG {
-            let s0 = if p % 4 == 0 {
-                PRIOR_MASS_KG
-            } else {
-                PRIOR_MOMENT_KGM
-            };
-            n[(p, p)] += 1.0 / (s0 * s0);
-            rhs[p] += prior[p] / (s0 * s0);
+            n[(p, p)] += prior_weight(p);
+            rhs[p] += prior[p] * prior_weight(p);
         }
         let chol = n.cholesky().ok_or(IdentifyError::Singular)?;
         x = chol.solve(&rhs);
@@ -458,7 +469,7 @@ pub fn sweep_segment(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     fn truth() -> Model {
@@ -467,6 +478,41 @@ mod tests {
         d.bodies[1].com[2] += 0.012;
         d.bodies[2].mass *= 0.9;
         Model::new(d).unwrap()
+    }
+
+    /// The torques an arm gives, `torques(q rad, q̇ rad/s, at rest, rng)` in N·m.
+    pub(crate) type Torques<'a> = dyn Fn(&[f64; 6], &[f64; 6], bool, &mut Pcg64) -> [f64; 6] + 'a;
+
+    /// Polls every 20 ms of `tour` driven out (0.15 rad/s) and back (0.3 rad/s) segment by
+    /// segment at constant speed, a second at rest between sweeps; `torques` gives each
+    /// poll's "currents" (torque constants 1 N·m/A).
+    pub(crate) fn synthetic_polls(
+        tour: &[[f64; 6]],
+        rng: &mut Pcg64,
+        torques: &Torques<'_>,
+    ) -> Vec<Poll> {
+        let mut polls = Vec::new();
+        let mut time = 0.0;
+        let dt = 0.02;
+        for w in tour.windows(2) {
+            for (a, b, speed) in [(w[0], w[1], 0.15), (w[1], w[0], 0.3)] {
+                let dist = (0..6).map(|j| (b[j] - a[j]).abs()).fold(0.0, f64::max);
+                let n = (dist / speed / dt).ceil() as usize + 1;
+                for k in 0..=n {
+                    let s = k as f64 / n as f64;
+                    let q: [f64; 6] = std::array::from_fn(|j| a[j] + s * (b[j] - a[j]));
+                    let qd: [f64; 6] = std::array::from_fn(|j| (b[j] - a[j]) / (n as f64 * dt));
+                    polls.push(Poll {
+                        t: time,
+                        setpoint: q,
+                        current: torques(&q, &qd, k == 0 || k == n, rng),
+                    });
+                    time += dt;
+                }
+                time += 1.0; // a pause at rest
+            }
+        }
+        polls
     }
 
     #[test]
@@ -495,37 +541,18 @@ mod tests {
         let fv = [8.0, 8.0, 4.0, 1.0, 1.0, 0.3];
         let mut rng = Pcg64::seed_from_u64(7);
         let tour = plan_sweep(&t, &[0.0, 0.4, 1.6, 0.0, 1.1, 0.0], &SweepPlan::default()).unwrap();
-        let mut polls = Vec::new();
-        let mut time = 0.0;
-        let dt = 0.02;
-        for w in tour.windows(2) {
-            for (a, b, speed) in [(w[0], w[1], 0.15), (w[1], w[0], 0.3)] {
-                let dist = (0..6).map(|j| (b[j] - a[j]).abs()).fold(0.0, f64::max);
-                let n = (dist / speed / dt).ceil() as usize + 1;
-                for k in 0..=n {
-                    let s = k as f64 / n as f64;
-                    let q: [f64; 6] = std::array::from_fn(|j| a[j] + s * (b[j] - a[j]));
-                    let qd: [f64; 6] = std::array::from_fn(|j| (b[j] - a[j]) / (n as f64 * dt));
-                    let g = t.static_torques(&q, &ExternalLoad::NONE);
-                    let tau: [f64; 6] = std::array::from_fn(|j| {
-                        let f = if k == 0 || k == n {
-                            // at rest: a stuck drive holds anything within ±1.6 Fc
-                            rng.random_range(-1.6..1.6) * fc[j]
-                        } else {
-                            fc[j] * qd[j].signum() + fv[j] * qd[j]
-                        };
-                        g[j] + f + 0.3 * rng.random_range(-1.0..1.0)
-                    });
-                    polls.push(Poll {
-                        t: time,
-                        setpoint: q,
-                        current: tau,
-                    });
-                    time += dt;
-                }
-                time += 1.0; // a pause at rest
-            }
-        }
+        let polls = synthetic_polls(&tour, &mut rng, &|q, qd, at_rest, rng| {
+            let g = t.static_torques(q, &ExternalLoad::NONE);
+            std::array::from_fn(|j| {
+                let f = if at_rest {
+                    // at rest: a stuck drive holds anything within ±1.6 Fc
+                    rng.random_range(-1.6..1.6) * fc[j]
+                } else {
+                    fc[j] * qd[j].signum() + fv[j] * qd[j]
+                };
+                g[j] + f + 0.3 * rng.random_range(-1.0..1.0)
+            })
+        });
         let s = samples(&polls, &[1.0; 6], 0.02);
         let id = identify(&Model::nominal(), &s).unwrap();
         for j in 0..6 {

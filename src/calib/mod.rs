@@ -3,7 +3,7 @@
 //! `base` (the inner level), `fit` (the outer level and its stages), `weights` (how rows are
 //! weighed, from the measured noise), `evaluate` (errors per load, floors), `report`,
 //! `collect` (gathering through the daemon), `identify` (gravity and friction from the arm's
-//! own motion), `plan` (which configurations to measure, and the
+//! own motion), `torque_check` (the torque constants against a known weight), `plan` (which configurations to measure, and the
 //! accuracy they will give).
 
 pub mod base;
@@ -15,4 +15,5 @@ pub mod identify;
 pub mod plan;
 mod prepare;
 pub mod report;
+pub mod torque_check;
 pub(crate) mod weights;

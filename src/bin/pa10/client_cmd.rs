@@ -71,6 +71,26 @@ pub trait Api {
     fn pause(&mut self, d: Duration) {
         std::thread::sleep(d);
     }
+    /// Hangs a weight of `newtons` at the tool point (0: takes it off): the simulation's
+    /// weight rack, or on a real arm the operator, asked on the terminal.
+    fn hang_weight(&mut self, newtons: f64) -> Result<()> {
+        use std::io::BufRead;
+        if newtons > 0.0 {
+            eprintln!(
+                "hang a known weight of {newtons} N ({:.3} kg) at the tool point, then press Enter",
+                newtons / 9.806_65
+            );
+        } else {
+            eprintln!("take the weight off the tool, then press Enter");
+        }
+        let mut line = String::new();
+        let n = std::io::stdin().lock().read_line(&mut line)?;
+        anyhow::ensure!(
+            n > 0,
+            "no operator to hang the weight: standard input is closed"
+        );
+        Ok(())
+    }
     /// The daemon's clock, s (any origin).
     fn clock_s(&self) -> f64 {
         static START: std::sync::OnceLock<Instant> = std::sync::OnceLock::new();
@@ -100,6 +120,10 @@ impl Api for Simulated {
     }
     fn clock_s(&self) -> f64 {
         self.0.now()
+    }
+    fn hang_weight(&mut self, newtons: f64) -> Result<()> {
+        self.0.servo.set_load(newtons);
+        Ok(())
     }
 }
 

@@ -243,10 +243,7 @@ fn collect_run(a: &CollectRunArgs) -> Result<()> {
     api.0
         .run_until_ready(5.0)
         .map_err(|e| anyhow::anyhow!("the simulated servo controller: {e}"))?;
-    let hang = |api: &mut Simulated, n: f64| {
-        api.0.servo.set_load(n);
-        Ok(())
-    };
+    let hang = |api: &mut Simulated, n: f64| api.hang_weight(n);
     let (robot, inst) = drive(&mut api, &poses, a, hang, |api| {
         Some(api.0.servo.observe_tool())
     })?;

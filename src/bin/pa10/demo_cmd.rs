@@ -101,7 +101,7 @@ fn config_text(dir: &Path, seed: u64) -> String {
 
 /// Hangs `n` newtons on the simulated arm and tells the daemon.
 fn set_load(api: &mut Simulated, n: f64) -> Result<()> {
-    api.0.servo.set_load(n);
+    api.hang_weight(n)?;
     crate::collect_cmd::set_payload(api, n)
 }
 

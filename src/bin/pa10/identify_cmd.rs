@@ -8,10 +8,12 @@ use std::time::Duration;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use pa10::calib::identify::{self, SweepPlan};
+use pa10::calib::torque_check;
 use pa10::daemon::api::sweep::{self, Session};
 use pa10::daemon::wire::{ApiRequest, Reply};
 
 use crate::client_cmd::{Api, Conn, Simulated, Socket, status_of};
+use crate::collect_cmd::set_payload;
 use crate::model_cmds::ModelArg;
 
 /// Arguments of `pa10 identify`.
@@ -48,6 +50,21 @@ pub struct IdentifyArgs {
     /// (its `sim` section, `sim.plant` included) in simulated time in this process.
     #[arg(long, value_name = "CONFIG")]
     simulate: Option<PathBuf>,
+    /// Check the torque constants against a known weight of this many newtons: the tour is
+    /// driven again with it hung at the tool point (the simulation hangs it; on a real arm
+    /// you are asked to) and the daemon told the payload (`pa10::calib::torque_check`).
+    #[arg(long, value_name = "N")]
+    known_weight: Option<f64>,
+    /// With `--known-weight`: where the weight hangs, flange → tool point as X Y Z (m) QW QX
+    /// QY QZ, replacing the model's tool (a model without a tool needs it: the weight's lever
+    /// is the check's scale).
+    #[arg(
+        long,
+        num_args = 7,
+        allow_negative_numbers = true,
+        value_name = "X Y Z QW QX QY QZ"
+    )]
+    tool: Option<Vec<f64>>,
 }
 
 /// A `pa10` client connection as a sweep's session.
@@ -67,8 +84,22 @@ impl Session for AsSession<'_> {
 
 /// `pa10 identify`.
 pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
-    let model = a.model.load()?;
+    let mut model = a.model.load()?;
+    if let Some(t) = &a.tool {
+        anyhow::ensure!(
+            a.known_weight.is_some(),
+            "--tool is the known weight's point: give --known-weight too"
+        );
+        model = model.with_tool(&crate::model_cmds::pose_arg("--tool", t)?)?;
+    } else if a.known_weight.is_some() && model.tool().translation.vector.norm() == 0.0 {
+        bail!(
+            "--known-weight: the model has no tool (its tool point is the flange); say where the weight hangs with --tool X Y Z QW QX QY QZ (--tool 0 0 0 1 0 0 0 for the flange)"
+        );
+    }
     sweep::check_speeds(&a.speeds).context("--speeds")?;
+    if let Some(n) = a.known_weight {
+        torque_check::check_weight(n).context("--known-weight")?;
+    }
     let plan = SweepPlan {
         waypoints: a.waypoints,
         margin: a.margin,
@@ -100,6 +131,18 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
     let samples = identify::samples(&polls, &kt, sweep::MIN_SAMPLE_SPEED);
     let id = identify::identify(&model, &samples)?;
     let out = id.apply(&model)?;
+    let kt_check = match a.known_weight {
+        Some(n) => {
+            api.hang_weight(n)?;
+            set_payload(api.as_mut(), n)?;
+            let loaded = sweep::gather(&mut AsSession(api.as_mut()), &tour, &a.speeds);
+            api.hang_weight(0.0)?;
+            set_payload(api.as_mut(), 0.0)?;
+            let with = identify::samples(&loaded?, &kt, sweep::MIN_SAMPLE_SPEED);
+            Some(torque_check::check(&model, &samples, &with, n)?)
+        }
+        None => None,
+    };
     out.save(&a.out)
         .with_context(|| format!("writing {}", a.out.display()))?;
     if a.conn.json {
@@ -110,6 +153,16 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
             "friction": out.data().friction,
             "bodies": out.data().bodies,
             "out": a.out,
+            "torque_constant_check": kt_check.as_ref().map(|c| serde_json::json!({
+                "known_weight_n": a.known_weight,
+                "configured": kt,
+                "ratio": c.ratio.map(finite),
+                "ratio_sigma": c.ratio_sigma.map(finite),
+                "weight_torque_rms_nm": c.weight_torque_rms_nm,
+                "seen": std::array::from_fn::<bool, 6, _>(|j| c.seen(j)),
+                "off": std::array::from_fn::<bool, 6, _>(|j| c.off(j)),
+                "corrected": c.corrected(&kt),
+            })),
         });
         println!("{v}");
         return Ok(());
@@ -137,6 +190,9 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
             id.rows[j]
         );
     }
+    if let Some(c) = &kt_check {
+        print_check(c, &kt, a.known_weight.unwrap_or_default());
+    }
     println!("\n| body | frame | mass [kg] | centre of mass [m] |");
     println!("|---|---|---|---|");
     for b in &out.data().bodies {
@@ -149,4 +205,48 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// A ratio as JSON can carry it (an unseen joint's infinite σ as `null`).
+fn finite(v: f64) -> Option<f64> {
+    v.is_finite().then_some(v)
+}
+
+fn print_check(c: &torque_check::TorqueConstantCheck, kt: &[f64; 6], newtons: f64) {
+    println!(
+        "\ntorque constants against a known {newtons} N weight (ratio = configured ÷ measured; 1 is right, \
+         within {:.0} % the model's geometry cannot tell):",
+        torque_check::RATIO_TOLERANCE * 100.0
+    );
+    println!(
+        "\n| joint | configured [N·m/A] | ratio | measured [N·m/A] | weight's torque RMS [N·m] |"
+    );
+    println!("|---|---|---|---|---|");
+    let fixed = c.corrected(kt);
+    for j in 0..6 {
+        if c.seen(j) {
+            println!(
+                "| J{} | {:.3} | {:.4} ± {:.4} | {:.3} | {:.1} |",
+                j + 1,
+                kt[j],
+                c.ratio[j],
+                c.ratio_sigma[j],
+                fixed[j],
+                c.weight_torque_rms_nm[j]
+            );
+        } else {
+            println!(
+                "| J{} | {:.3} | not seen (the weight loads this joint too little on this tour) | — | {:.1} |",
+                j + 1,
+                kt[j],
+                c.weight_torque_rms_nm[j]
+            );
+        }
+    }
+    if (0..6).any(|j| c.off(j)) {
+        println!(
+            "\nthe configuration's torque_constants should read: [{}]",
+            fixed.map(|k| format!("{k:.3}")).join(", ")
+        );
+    }
 }
