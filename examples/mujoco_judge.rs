@@ -36,7 +36,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use pa10::calib::dataset::{Dataset, Effort, Meta, Row};
 use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
-use pa10::calib::identify::{self, SweepPlan};
+use pa10::calib::identify::SweepPlan;
 use pa10::daemon::api::sweep;
 use pa10::daemon::config::{Config, Settings};
 use pa10::daemon::core::Core;
@@ -946,11 +946,8 @@ fn identify_through(
         seed: o.seed,
         ..SweepPlan::default()
     };
-    let tour = identify::plan_sweep(nominal, &status(ls)?.setpoint, &plan)?;
-    let polls = sweep::gather(ls, &tour, &sweep::DEFAULT_SPEEDS)?;
-    let samples = identify::samples(&polls, &kt, sweep::MIN_SAMPLE_SPEED);
-    let id = identify::identify(nominal, &samples)?;
-    let model = id.apply(nominal)?;
+    let run = sweep::identify_through(ls, nominal, &kt, &plan, &sweep::DEFAULT_SPEEDS)?;
+    let (samples, id, model) = (run.samples, run.identified, run.model);
     let i = Identification {
         samples: samples.len(),
         tour_s: ls.now() - t,

@@ -44,7 +44,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("pa10d: error: {e:#}");
+            eprintln!("pa10d: error: {}", pa10::text::error_chain(e.as_ref()));
             ExitCode::FAILURE
         }
     }

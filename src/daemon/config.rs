@@ -410,7 +410,9 @@ impl Config {
             source,
         })?;
         let config = Self::parse(&text, &path.display().to_string())?;
-        config.validate(path.parent().unwrap_or(Path::new(".")))
+        // a bare file name's parent is "": its folder is the working directory
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
+        config.validate(folder.unwrap_or(Path::new(".")))
     }
 
     /// Validates every value and loads the model (`base`: folder relative paths start from).

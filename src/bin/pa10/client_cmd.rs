@@ -127,6 +127,21 @@ impl Api for Simulated {
     }
 }
 
+/// A `pa10` client connection as a sweep's session.
+pub struct AsSession<'a>(pub &'a mut dyn Api);
+
+impl pa10::daemon::api::sweep::Session for AsSession<'_> {
+    fn send(&mut self, req: ApiRequest) -> std::result::Result<Reply, String> {
+        self.0.send(req).map_err(|e| format!("{e:#}"))
+    }
+    fn pause(&mut self, seconds: f64) {
+        self.0.pause(Duration::from_secs_f64(seconds));
+    }
+    fn clock_s(&self) -> f64 {
+        self.0.clock_s()
+    }
+}
+
 /// Sends `req`; a refusal is an error with the daemon's reason.
 pub fn checked(api: &mut dyn Api, req: ApiRequest) -> Result<Answer> {
     match api.send(req)? {

@@ -3,16 +3,14 @@
 //! (`pa10::calib::identify`); write them into a model file.
 
 use std::path::PathBuf;
-use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use pa10::calib::identify::{self, SweepPlan};
 use pa10::calib::torque_check;
-use pa10::daemon::api::sweep::{self, Session};
-use pa10::daemon::wire::{ApiRequest, Reply};
+use pa10::daemon::api::sweep;
 
-use crate::client_cmd::{Api, Conn, Simulated, Socket, status_of};
+use crate::client_cmd::{Api, AsSession, Conn, Simulated, Socket};
 use crate::collect_cmd::set_payload;
 use crate::model_cmds::ModelArg;
 
@@ -67,21 +65,6 @@ pub struct IdentifyArgs {
     tool: Option<Vec<f64>>,
 }
 
-/// A `pa10` client connection as a sweep's session.
-struct AsSession<'a>(&'a mut dyn Api);
-
-impl Session for AsSession<'_> {
-    fn send(&mut self, req: ApiRequest) -> std::result::Result<Reply, String> {
-        self.0.send(req).map_err(|e| format!("{e:#}"))
-    }
-    fn pause(&mut self, seconds: f64) {
-        self.0.pause(Duration::from_secs_f64(seconds));
-    }
-    fn clock_s(&self) -> f64 {
-        self.0.clock_s()
-    }
-}
-
 /// `pa10 identify`.
 pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
     let mut model = a.model.load()?;
@@ -125,21 +108,17 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
             ),
         },
     };
-    let start = status_of(api.as_mut())?.setpoint;
-    let tour = identify::plan_sweep(&model, &start, &plan)?;
-    let polls = sweep::gather(&mut AsSession(api.as_mut()), &tour, &a.speeds)?;
-    let samples = identify::samples(&polls, &kt, sweep::MIN_SAMPLE_SPEED);
-    let id = identify::identify(&model, &samples)?;
-    let out = id.apply(&model)?;
+    let run = sweep::identify_through(&mut AsSession(api.as_mut()), &model, &kt, &plan, &a.speeds)?;
+    let (tour, samples, id, out) = (&run.tour, &run.samples, &run.identified, &run.model);
     let kt_check = match a.known_weight {
         Some(n) => {
             api.hang_weight(n)?;
             set_payload(api.as_mut(), n)?;
-            let loaded = sweep::gather(&mut AsSession(api.as_mut()), &tour, &a.speeds);
+            let loaded = sweep::gather(&mut AsSession(api.as_mut()), tour, &a.speeds);
             api.hang_weight(0.0)?;
             set_payload(api.as_mut(), 0.0)?;
             let with = identify::samples(&loaded?, &kt, sweep::MIN_SAMPLE_SPEED);
-            Some(torque_check::check(&model, &samples, &with, n)?)
+            Some(torque_check::check(&model, samples, &with, n)?)
         }
         None => None,
     };
@@ -171,7 +150,7 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
         "pa10 identify: {} constant-speed samples from {} sweeps ({} polls); wrote {}",
         samples.len(),
         2 * (tour.len() - 1),
-        polls.len(),
+        run.polls,
         a.out.display()
     );
     println!("\n| joint | Coulomb [N·m] | viscous [N·m·s/rad] | residual RMS [N·m] | rows |");

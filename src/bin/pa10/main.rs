@@ -198,7 +198,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("pa10: error: {e:#}");
+            eprintln!("pa10: error: {}", pa10::text::error_chain(e.as_ref()));
             ExitCode::FAILURE
         }
     }

@@ -5,9 +5,10 @@
 //! polls the status into the [`Poll`]s `calib::identify::samples` cuts samples from. The
 //! fitting itself is pure and lives in `calib::identify`.
 
-use crate::calib::identify::{self, Poll};
+use crate::calib::identify::{self, Identified, IdentifyError, Poll, Sample, SweepPlan};
 use crate::daemon::plan::TrajectoryPoint;
 use crate::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
+use crate::model::Model;
 
 /// A connection to a daemon whose clock the caller can let run.
 pub trait Session {
@@ -52,6 +53,50 @@ pub enum SweepError {
     /// No sweep speed given, or one outside (0, 1] rad/s.
     #[error("sweep speeds: one or more in (0, 1] rad/s, got {0:?}")]
     Speeds(Vec<f64>),
+    /// Planning the tour or fitting its samples failed.
+    #[error(transparent)]
+    Identify(#[from] IdentifyError),
+}
+
+/// What [`identify_through`] did and found.
+#[derive(Debug, Clone)]
+pub struct Identification {
+    /// The tour's waypoints, rad (driven again for `calib::torque_check`).
+    pub tour: Vec<[f64; 6]>,
+    /// Status polls taken while the arm moved.
+    pub polls: usize,
+    /// The constant-speed samples cut from them (torque constants applied).
+    pub samples: Vec<Sample>,
+    /// The fit.
+    pub identified: Identified,
+    /// `model` with the identified bodies and friction.
+    pub model: Model,
+}
+
+/// `pa10 identify`'s steps through a daemon: a tour planned from where the arm stands
+/// (`plan`, within `model`'s limits), driven with [`gather`] at `speeds` (rad/s), its
+/// samples cut with the torque constants `kt` (N·m/A), gravity and friction fitted from
+/// `model`'s bodies.
+pub fn identify_through<S: Session + ?Sized>(
+    s: &mut S,
+    model: &Model,
+    kt: &[f64; 6],
+    plan: &SweepPlan,
+    speeds: &[f64],
+) -> Result<Identification, SweepError> {
+    check_speeds(speeds)?;
+    let tour = identify::plan_sweep(model, &status(s)?.setpoint, plan)?;
+    let polls = gather(s, &tour, speeds)?;
+    let samples = identify::samples(&polls, kt, MIN_SAMPLE_SPEED);
+    let identified = identify::identify(model, &samples)?;
+    let model = identified.apply(model)?;
+    Ok(Identification {
+        tour,
+        polls: polls.len(),
+        samples,
+        identified,
+        model,
+    })
 }
 
 /// Sends `req`; a refusal is an error with the daemon's reason.
