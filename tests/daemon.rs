@@ -1080,6 +1080,57 @@ fn the_demo_gathers_through_the_daemon_calibrates_and_beats_the_nominal_model() 
     );
 }
 
+/// `pa10 demo --config`: a configuration on `torque_source: estimated` runs the lab's path
+/// (identification through the daemon first, calibration on the identified model's torques);
+/// a configuration without a simulated arm is refused with the reason.
+#[test]
+fn the_demo_runs_the_labs_path_on_a_configured_arm() {
+    let dir = std::env::temp_dir().join(format!("pa10-demo-config-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let root = env!("CARGO_MANIFEST_DIR");
+    let text = std::fs::read_to_string(format!("{root}/config/sim.yaml")).unwrap();
+    let estimated = text.replace("torque_source: measured", "torque_source: estimated");
+    assert_ne!(estimated, text, "config/sim.yaml names its torque source");
+    std::fs::write(dir.join("sim.yaml"), estimated).unwrap();
+    std::fs::copy(
+        format!("{root}/config/model-nominal.yaml"),
+        dir.join("model-nominal.yaml"),
+    )
+    .unwrap();
+    let demo = |config: &str| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
+            .args([
+                "demo", "--quick", "--json", "--seed", "2", "--config", config,
+            ])
+            .output()
+            .unwrap()
+    };
+    let o = demo(dir.join("sim.yaml").to_str().unwrap());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["identified_samples"].as_u64().unwrap() > 300, "{v}");
+    assert_eq!(v["seed"], 2);
+    let models = v["models"].as_array().unwrap();
+    let at90 = |m: usize| models[m][1][2]["mean_mm"].as_f64().unwrap();
+    assert!(
+        at90(2) < 0.5 * at90(0),
+        "full {} vs nominal {}",
+        at90(2),
+        at90(0)
+    );
+    // the hardware's bus, no simulated arm
+    let cut = text
+        .find("\nsim:")
+        .expect("config/sim.yaml has a sim section");
+    let hardware = text[..cut].replace("backend: virtual", "backend: socketcan\n  interface: can0");
+    std::fs::write(dir.join("hw.yaml"), hardware).unwrap();
+    let refused = demo(dir.join("hw.yaml").to_str().unwrap());
+    assert!(!refused.status.success());
+    let e = String::from_utf8_lossy(&refused.stderr);
+    assert!(e.contains("no simulated arm"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
     use pa10::daemon::control::CommandError;

@@ -5,7 +5,9 @@
 //! joint whose constant is 10 % high reports every torque 10 % high, and [`super::identify`]
 //! fits bodies 10 % heavier. A *known* weight hung at the tool breaks the tie: the same tour
 //! driven without and with it gives, per joint,
-//! `τ_j = Y_j(q)·φ_j + Fc_j·sign(q̇_j) + Fv_j·q̇_j + r_j·W_j(q)`, with `W_j` the torque the model's statics give the weight at joint `j` and
+//! `τ_j = Y_j(q)·φ_j + Fc_j·sign(q̇_j) + Fv_j·q̇_j + r_j·W_j(q, q̇)`, with `W_j` the torque the
+//! weight asks of joint `j` through the model's kinematics ([`weight_torques`]: a point mass,
+//! its weight and its centripetal force) and
 //! `r_j` = configured ÷ true torque constant (1 when right). Each joint is fitted on its own
 //! (its own gravity parameters, so whatever scale its constant puts on the arm's gravity is
 //! absorbed there), and `r_j` comes from what the weight adds at the same configurations. A
@@ -27,9 +29,10 @@ pub const MIN_WEIGHT_TORQUE_NM: f64 = 1.0;
 /// Largest standard error of a ratio that is still reported as checked.
 pub const MAX_RATIO_SIGMA: f64 = 0.02;
 /// Smallest departure of a ratio from 1 reported as a wrong constant: below it the model's
-/// geometry (a nominal arm's levers, the tool point) cannot tell (0.3–0.5 % on the simulated arm
-/// through the nominal model).
-pub const RATIO_TOLERANCE: f64 = 0.01;
+/// geometry (a nominal arm's levers, the tool point) cannot tell: through the nominal model,
+/// up to 0.4 % on the in-process arm and 1.0–1.4 % on MuJoCo's (its link lengths and tool point
+/// hidden, docs/judge.md §8); a calibrated model's geometry tightens it.
+pub const RATIO_TOLERANCE: f64 = 0.02;
 /// The heaviest known weight accepted, N (the PA10's rated payload is 10 kg).
 pub const MAX_KNOWN_WEIGHT_N: f64 = 200.0;
 
@@ -85,6 +88,35 @@ pub fn check_weight(newtons: f64) -> Result<(), IdentifyError> {
     }
 }
 
+/// The torques (N·m) that a weight of `newtons`, a point mass at `model`'s tool point, asks of
+/// the joints at angles `q` (rad) moving at constant speeds `qd` (rad/s): its weight and the
+/// force that keeps it on its curved path (`m·(g − a)` on the arm, `a` the tool point's
+/// acceleration at constant joint speeds — about 1 % of the weight at 0.3 rad/s and a metre's
+/// reach, even in the speed, so sweeping both ways does not cancel it).
+pub fn weight_torques(model: &Model, q: &[f64; 6], qd: &[f64; 6], newtons: f64) -> [f64; 6] {
+    /// Step of the second difference along the motion, rad.
+    const STEP: f64 = 1e-3;
+    let g = model.gravity();
+    let mass = newtons / g.norm().max(f64::MIN_POSITIVE);
+    let speed = qd.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let accel = if speed > 0.0 {
+        let at = |s: f64| {
+            let q: [f64; 6] = std::array::from_fn(|j| q[j] + s * qd[j] / speed);
+            model.fk(&q).translation.vector
+        };
+        (at(STEP) - 2.0 * at(0.0) + at(-STEP)) * (speed * speed / (STEP * STEP))
+    } else {
+        nalgebra::Vector3::zeros()
+    };
+    let load = ExternalLoad {
+        force: mass * (g - accel),
+        at: nalgebra::Vector3::zeros(),
+    };
+    let a = model.static_torques(q, &load);
+    let b = model.static_torques(q, &ExternalLoad::NONE);
+    std::array::from_fn(|j| a[j] - b[j])
+}
+
 /// Checks the torque constants behind `without` and `with` — samples of the same tour
 /// without and with `newtons` hung at `model`'s tool point (module documentation).
 pub fn check(
@@ -112,14 +144,11 @@ pub fn check(
     let samples: Vec<Sample> = all.iter().map(|(s, _)| **s).collect();
     let regs = regressors(model, &samples);
     let prior = prior_params(model);
-    let load = ExternalLoad::hung(newtons, &model.gravity());
     let weight: Vec<[f64; 6]> = all
         .iter()
         .map(|(s, loaded)| {
             if *loaded {
-                let a = model.static_torques(&s.q, &load);
-                let b = model.static_torques(&s.q, &ExternalLoad::NONE);
-                std::array::from_fn(|j| a[j] - b[j])
+                weight_torques(model, &s.q, &s.qd, newtons)
             } else {
                 [0.0; 6]
             }
@@ -214,8 +243,24 @@ mod tests {
         let newtons = 90.0;
         let mut rng = Pcg64::seed_from_u64(11);
         let tour_with = |n: f64, rng: &mut Pcg64| {
-            let load = ExternalLoad::hung(n, &t.gravity());
             let polls = synthetic_polls(&tour, rng, &|q, qd, at_rest, rng| {
+                // the weight a point mass: its tool point's acceleration over one poll (20 ms)
+                let dt = 0.02;
+                let p = |s: f64| {
+                    t.fk(&std::array::from_fn(|j| q[j] + s * qd[j] * dt))
+                        .translation
+                        .vector
+                };
+                let accel = if at_rest {
+                    nalgebra::Vector3::zeros()
+                } else {
+                    (p(1.0) - 2.0 * p(0.0) + p(-1.0)) / (dt * dt)
+                };
+                let grav = t.gravity();
+                let load = ExternalLoad {
+                    force: n / grav.norm() * (grav - accel),
+                    at: nalgebra::Vector3::zeros(),
+                };
                 let g = t.static_torques(q, &load);
                 std::array::from_fn(|j| {
                     let f = if at_rest {

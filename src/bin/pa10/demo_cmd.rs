@@ -11,7 +11,9 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use pa10::calib::dataset::{Dataset, Effort, Meta, Row};
 use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
-use pa10::daemon::config::Config;
+use pa10::calib::identify::SweepPlan;
+use pa10::daemon::api::sweep;
+use pa10::daemon::config::{Config, Settings, TorqueSource};
 
 use pa10::daemon::wire::ApiRequest;
 use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
@@ -21,15 +23,23 @@ use rand::SeedableRng;
 use rand_pcg::Pcg64;
 use serde::Serialize;
 
-use crate::client_cmd::{Api, Simulated, checked};
+use crate::client_cmd::{Api, AsSession, Simulated, checked};
 use crate::collect_cmd::{move_wait, sample, wait_still};
 
 /// Arguments of `pa10 demo`.
 #[derive(Debug, Args)]
 pub struct DemoArgs {
-    /// Seed of the hidden true robot, the validation poses and every noise.
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
+    /// Seed of the hidden true robot, the validation poses and every noise (with `--config`:
+    /// its `sim.seed` unless given).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Run on this configuration's simulated arm instead of the built-in one: its `sim`
+    /// section (the hidden truth, `sim.plant`: e.g. `config/sim-mujoco.yaml`, MuJoCo with
+    /// sticking drives), its loop and limits as written. With `torque_source: estimated` or
+    /// `model` the lab's path runs: `pa10 identify`'s tour through the daemon first, the
+    /// identified model loaded, calibration on its torques (`--model-torques`).
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
     /// Samples per calibration pose and load.
     #[arg(long, default_value_t = 2)]
     repeats: usize,
@@ -59,6 +69,11 @@ struct Cell {
 #[derive(Debug, Serialize)]
 struct Outcome {
     seed: u64,
+    /// The configuration the arm ran on (`--config`), or the built-in one.
+    config: String,
+    /// `pa10 identify`'s tour ran first (the configuration's torque source needs a model's
+    /// bodies): its constant-speed samples.
+    identified_samples: Option<usize>,
     calibration_rows: usize,
     calibration_poses: usize,
     validation_poses: usize,
@@ -99,6 +114,30 @@ fn config_text(dir: &Path, seed: u64) -> String {
         .replace("log_level: info", "log_level: warn")
 }
 
+/// Longest wait for the tool to stop on a configured plant, s: a loaded arm whose drives
+/// stick rings for seconds (docs/judge.md §8); the instrument waits for the tool, as a lab's.
+const TOOL_STILL_MAX_S: f64 = 5.0;
+
+/// Waits for the resolvers ([`wait_still`]) and then, as the instrument does, for the tool:
+/// its true position moving ≤ 1 µm over 10 ms three polls running, at most `tool_max` s.
+fn settle(api: &mut Simulated, tool_max: f64) -> Result<()> {
+    wait_still(api, SETTLE_MIN, SETTLE_MAX)?;
+    let t = api.clock_s();
+    let mut last = api.0.servo.true_tool_pose().translation.vector;
+    let mut still = 0;
+    while still < 3 && api.clock_s() - t < tool_max {
+        api.pause(Duration::from_millis(10));
+        let now = api.0.servo.true_tool_pose().translation.vector;
+        still = if (now - last).norm() <= 1e-6 {
+            still + 1
+        } else {
+            0
+        };
+        last = now;
+    }
+    Ok(())
+}
+
 /// Hangs `n` newtons on the simulated arm and tells the daemon.
 fn set_load(api: &mut Simulated, n: f64) -> Result<()> {
     api.hang_weight(n)?;
@@ -125,14 +164,48 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     result
 }
 
+/// The settings the demo runs on, and its seed: `--config`'s (models loaded from `dir`,
+/// the seed given or its `sim.seed`), or the built-in simulation written into `dir`.
+fn settings(a: &DemoArgs, dir: &Path) -> Result<(Settings, u64)> {
+    let Some(path) = &a.config else {
+        let seed = a.seed.unwrap_or(1);
+        std::fs::write(dir.join("model-nominal.yaml"), NOMINAL_YAML)?;
+        let cfg_path = dir.join("pa10d.yaml");
+        std::fs::write(&cfg_path, config_text(dir, seed))?;
+        return Ok((Config::load(&cfg_path)?, seed));
+    };
+    let mut s = Config::load(path)?;
+    let Some(sim) = s.sim.as_mut() else {
+        anyhow::bail!(
+            "--config {}: no simulated arm (the demo needs `bus.backend: virtual` and a `sim` section)",
+            path.display()
+        );
+    };
+    if let Some(seed) = a.seed {
+        sim.seed = seed;
+    }
+    let seed = sim.seed;
+    // the demo writes its models into its own folder and loads them from there
+    s.api.model_dir = dir.to_path_buf();
+    Ok((s, seed))
+}
+
 fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
-    std::fs::write(dir.join("model-nominal.yaml"), NOMINAL_YAML)?;
-    let cfg_path = dir.join("pa10d.yaml");
-    std::fs::write(&cfg_path, config_text(dir, a.seed))?;
-    let loaded = Config::load(&cfg_path)?;
+    let (loaded, seed) = settings(a, dir)?;
     let kt = loaded.control.torque_constants;
     let tool = CampaignSpec::default().tool;
-    let nominal = Model::nominal().with_tool(&tool)?;
+    let nominal = loaded.model.with_tool(&tool)?;
+    // a torque source built on the model's bodies wants them identified first (the lab's path)
+    // the built-in in-process arm is still when its resolvers are
+    let tool_max = if a.config.is_some() {
+        TOOL_STILL_MAX_S
+    } else {
+        0.0
+    };
+    let identify_first = matches!(
+        loaded.control.torque_source,
+        TorqueSource::Estimated | TorqueSource::Model
+    );
 
     // Snake through the grid (consecutive poses one grid step apart) so moves stay short.
     let mut all = grid_poses();
@@ -171,10 +244,39 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
     api.0
         .run_until_ready(5.0)
         .map_err(|e| anyhow::anyhow!("the simulated servo controller: {e}"))?;
-    let mut rng = Pcg64::seed_from_u64(a.seed ^ 0xde70);
+    let mut rng = Pcg64::seed_from_u64(seed ^ 0xde70);
     let truth = api.0.servo.truth().clone();
     let cmm = |api: &Simulated, rng: &mut Pcg64| -> Frame {
         truth.observe_pose(&api.0.servo.true_tool_pose(), rng)
+    };
+
+    // 0. On the lab's path, gravity and friction from the arm's own motion first.
+    let (base, identified_samples) = if identify_first {
+        bar.set_message("identifying gravity and friction (pa10 identify's tour)");
+        let plan = SweepPlan {
+            waypoints: if a.quick { 6 } else { 10 },
+            seed,
+            ..SweepPlan::default()
+        };
+        let run = sweep::identify_through(
+            &mut AsSession(&mut api),
+            &nominal,
+            &kt,
+            &plan,
+            &sweep::DEFAULT_SPEEDS,
+        )
+        .context("identification")?;
+        let path = dir.join("identified.yaml");
+        run.model.save(&path)?;
+        checked(
+            &mut api,
+            ApiRequest::LoadModel {
+                path: path.display().to_string(),
+            },
+        )?;
+        (run.model, Some(run.samples.len()))
+    } else {
+        (nominal.clone(), None)
     };
 
     // 1. Gather the calibration set through the daemon.
@@ -197,7 +299,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
         };
         for load in loads {
             set_load(&mut api, load)?;
-            wait_still(&mut api, SETTLE_MIN, SETTLE_MAX)?;
+            settle(&mut api, tool_max)?;
             for _ in 0..a.repeats {
                 let (q_motor, current) = sample(&mut api)?;
                 data.rows.push(Row {
@@ -224,24 +326,30 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
                 .collect(),
         ),
         ..sidecar(
-            format!("simulator ground truth (pa10 demo, seed {})", a.seed),
+            format!("simulator ground truth (pa10 demo, seed {seed})"),
             &tool,
             &truth.noise,
         )
     });
     let t_gather = t0.elapsed().as_secs_f64();
-    // 2. Calibrate: full model, linear stiffness only, and the nominal model placed.
+    // 2. Calibrate: full model, linear stiffness only, and the nominal model placed — on the
+    //    lab's path from the identified model and on its torques.
     bar.set_message("calibrating");
     let opts = CalibOptions {
         torque_constants: Some(kt),
         starts: 2,
-        seed: a.seed,
+        seed,
         ..Default::default()
     };
-    let full = calibrate(&nominal, &data, None, &opts, &|_| {})?.model;
+    let fitted = if identify_first {
+        data.with_model_torques(&base)
+    } else {
+        data.clone()
+    };
+    let full = calibrate(&base, &fitted, None, &opts, &|_| {})?.model;
     let linear = calibrate(
-        &nominal,
-        &data,
+        &base,
+        &fitted,
         None,
         &CalibOptions {
             linear_only: true,
@@ -250,7 +358,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
         &|_| {},
     )?
     .model;
-    let placed = fit_base_only(&nominal, &data, None, &opts)?;
+    let placed = fit_base_only(&base, &fitted, None, &opts)?;
 
     let t_calib = t0.elapsed().as_secs_f64();
     // 3. Validation: novel poses (instrument frame), every model loaded into the daemon.
@@ -306,7 +414,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
             for l in order {
                 let load = VAL_LOADS[l];
                 set_load(&mut api, load)?;
-                wait_still(&mut api, SETTLE_MIN, SETTLE_MAX)?;
+                settle(&mut api, tool_max)?;
                 let got = truth_base.inverse() * api.0.servo.true_tool_pose();
                 let e = pose_error(target, &got);
                 errs[mi][l].push((
@@ -346,11 +454,16 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
 
     // 4. The Monte Carlo floor at the validation configurations: resolver errors alone
     //    (σ per joint), seeded draws through the accuracy module's FK kernel.
-    let floor = mc_floor_mm(&full, &val_q, truth.noise.resolver_rad, a.seed);
+    let floor = mc_floor_mm(&full, &val_q, truth.noise.resolver_rad, seed);
     let floor_mm: Vec<(f64, f64)> = VAL_LOADS.iter().map(|&l| (l, floor)).collect();
 
     let out = Outcome {
-        seed: a.seed,
+        seed,
+        config: a
+            .config
+            .as_ref()
+            .map_or_else(|| "built-in".to_string(), |p| p.display().to_string()),
+        identified_samples,
         calibration_rows: data.rows.len(),
         calibration_poses: cal_poses.len(),
         validation_poses: targets.len(),

@@ -193,7 +193,7 @@ fn finite(v: f64) -> Option<f64> {
 
 fn print_check(c: &torque_check::TorqueConstantCheck, kt: &[f64; 6], newtons: f64) {
     println!(
-        "\ntorque constants against a known {newtons} N weight (ratio = configured ÷ measured; 1 is right, \
+        "\ntorque constants against a known {newtons} N weight (ratio = configured ÷ measured; 1 is right; \
          within {:.0} % the model's geometry cannot tell):",
         torque_check::RATIO_TOLERANCE * 100.0
     );
