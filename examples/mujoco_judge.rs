@@ -23,7 +23,7 @@
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--discover]
 //! [--no-recalibrate] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
-//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--check-ratio R] [--trace FILE]`
+//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--gain-payload-n N] [--check-ratio R] [--trace FILE]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
 //! lab: `pa10 identify` first, `torque_source: estimated`, `hold_damping: 1`. Needs `pip install
 //! mujoco` (the Python interpreter `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another
@@ -86,6 +86,8 @@ struct Opts {
     hold_deadband: f64,
     /// The daemon's `control.hold_damping`.
     hold_damping: f64,
+    /// The daemon's `control.gain_payload_n`, N (0: the gain does not depend on the payload).
+    gain_payload_n: f64,
     /// `--check`'s bound on calibrated mean / floor (default 2 quick, 1.3 full).
     check_ratio: Option<f64>,
     /// `--trace FILE`: every move's and settle's samples as CSV (for finding what rings).
@@ -112,6 +114,7 @@ fn opts() -> Result<Opts> {
         identify: true,
         hold_deadband: 1e-4,
         hold_damping: 1.0,
+        gain_payload_n: 90.0,
         check_ratio: None,
         trace: None,
         discover: false,
@@ -160,6 +163,11 @@ fn opts() -> Result<Opts> {
                     .parse()
                     .context("--hold-deadband: rad")?;
             }
+            "--gain-payload-n" => {
+                o.gain_payload_n = value("--gain-payload-n")?
+                    .parse()
+                    .context("--gain-payload-n: a number of newtons (0: off)")?;
+            }
             "--hold-damping" => {
                 o.hold_damping = value("--hold-damping")?
                     .parse()
@@ -184,7 +192,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --check-ratio R, --trace FILE)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-payload-n N, --check-ratio R, --trace FILE)"
             ),
         }
     }
@@ -264,6 +272,8 @@ struct Outcome {
     hold_deadband: f64,
     /// The daemon's `control.hold_damping`.
     hold_damping: f64,
+    /// The daemon's `control.gain_payload_n`, N (0: off).
+    gain_payload_n: f64,
     identification: Option<Identification>,
     /// With `--discover`: the effects named, in the order added (`pa10 discover --json`'s).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -408,10 +418,15 @@ fn settings(dir: &Path, o: &Opts) -> Result<Settings> {
         .replace(
             "current_filter_hz: 20.0",
             &format!(
-                "current_filter_hz: {}\n  hold_deadband: {}\n  hold_damping: {}",
+                "current_filter_hz: {}\n  hold_deadband: {}\n  hold_damping: {}{}",
                 o.filter_hz.unwrap_or(20.0),
                 o.hold_deadband,
-                o.hold_damping
+                o.hold_damping,
+                if o.gain_payload_n > 0.0 {
+                    format!("\n  gain_payload_n: {}", o.gain_payload_n)
+                } else {
+                    String::new()
+                }
             ),
         )
         .replace("log_level: info", "log_level: warn");
@@ -853,6 +868,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         torque_source: o.torque_source.clone(),
         hold_deadband: o.hold_deadband,
         hold_damping: o.hold_damping,
+        gain_payload_n: o.gain_payload_n,
         identification,
         discovered: discovery.as_ref().map(|(d, _, _)| d.effects.clone()),
         discovery: discovery.map(|(d, secs, rows)| DiscoverySummary {

@@ -115,6 +115,14 @@ pub struct ControlConfig {
     /// MuJoCo plant's J2): the term brakes it at once (docs/judge.md §8).
     #[serde(default)]
     pub hold_damping: f64,
+    /// The payload at which the position gain is halved, N: the gain is `position_gain / (1 +
+    /// payload_n / gain_payload_n)`; absent, it does not depend on the payload. A payload at
+    /// the tool multiplies the inertia the shoulder's drive moves (9 kg at a metre's reach
+    /// doubles it and more), the drive's speed loop slows in proportion, and a position loop
+    /// as fast as the unloaded arm's then rings the arm's link mode up: on MuJoCo's arm gain 20
+    /// faults a 90 N sweep in a 3 Hz limit cycle that 15 survives (docs/judge.md §8).
+    #[serde(default)]
+    pub gain_payload_n: Option<f64>,
     /// Real-time options.
     #[serde(default)]
     pub realtime: Realtime,
@@ -262,6 +270,11 @@ pub const MAX_HOLD_DEADBAND: f64 = 1e-3;
 /// The longest `limits.min_ramp_s`, s.
 pub const MAX_MIN_RAMP_S: f64 = 2.0;
 
+/// The range of `control.gain_payload_n`, N.
+pub const MIN_GAIN_PAYLOAD_N: f64 = 1.0;
+/// See [`MIN_GAIN_PAYLOAD_N`].
+pub const MAX_GAIN_PAYLOAD_N: f64 = 10_000.0;
+
 /// The largest `control.hold_damping` (dimensionless).
 pub const MAX_HOLD_DAMPING: f64 = 10.0;
 
@@ -273,6 +286,7 @@ fn default_control() -> ControlConfig {
         current_filter_hz: default_filter(),
         hold_deadband: 0.0,
         hold_damping: 0.0,
+        gain_payload_n: None,
         realtime: Realtime::default(),
     }
 }
@@ -480,6 +494,16 @@ impl Config {
             MAX_HOLD_DAMPING,
             "",
         )?;
+        if let Some(h) = c.control.gain_payload_n
+            && !(h.is_finite() && (MIN_GAIN_PAYLOAD_N..=MAX_GAIN_PAYLOAD_N).contains(&h))
+        {
+            return Err(invalid(
+                "control.gain_payload_n",
+                format!(
+                    "a payload of {MIN_GAIN_PAYLOAD_N}…{MAX_GAIN_PAYLOAD_N} N (or absent: no scheduling), got {h}"
+                ),
+            ));
+        }
         if !(c.control.current_filter_hz.is_finite()
             && c.control.current_filter_hz > 0.0
             && c.control.current_filter_hz < c.control.rate_hz / 2.0)
@@ -645,6 +669,7 @@ impl Config {
             filter_hz: control.current_filter_hz,
             hold_deadband: control.hold_deadband,
             hold_damping: control.hold_damping,
+            gain_payload_n: control.gain_payload_n,
             torque_constants,
             payload_n,
             payload_com: [0.0; 3],

@@ -203,6 +203,7 @@ impl Controller {
         let mut out = [0.0; 6];
         let mut link = [0.0; 6];
         let holding = matches!(self.activity, Activity::Holding);
+        let gain = self.p.loop_gain();
         for j in 0..6 {
             let e = target[j] - state.q_motor[j];
             if e.abs() > self.p.following_error {
@@ -229,7 +230,7 @@ impl Controller {
             } else {
                 0.0
             };
-            out[j] = (self.setpoint.qd[j] + self.p.gain * e - damping)
+            out[j] = (self.setpoint.qd[j] + gain * e - damping)
                 .clamp(-self.p.limits.speed[j], self.p.limits.speed[j]);
         }
         Ok((out, link))
@@ -380,6 +381,25 @@ mod tests {
         target[1] = Q0[1] + 0.5; // 10 rad/s asked
         let (speeds, _) = c.position_loop(&s, &target).expect("within limits");
         assert_eq!(speeds[1], 1.0, "clamped to the speed limit");
+    }
+
+    #[test]
+    fn a_payload_scheduled_gain_halves_at_its_payload_and_not_without_it() {
+        let s = state(Q0, [0.0; 6], 0.0);
+        let mut target = Q0;
+        target[1] += 0.001;
+        let speed_at = |payload_n: f64, gain_payload_n: Option<f64>| {
+            let mut p = params();
+            p.payload_n = payload_n;
+            p.gain_payload_n = gain_payload_n;
+            let c = Controller::new(Model::nominal(), p, &s);
+            c.position_loop(&s, &target).expect("within limits").0[1]
+        };
+        // gain 20 1/s, 1 mrad: 0.02 rad/s unloaded; 90 N with halving at 90 N: 0.01
+        assert!((speed_at(0.0, Some(90.0)) - 0.02).abs() < 1e-12);
+        assert!((speed_at(90.0, Some(90.0)) - 0.01).abs() < 1e-12);
+        assert!((speed_at(45.0, Some(90.0)) - 0.02 / 1.5).abs() < 1e-12);
+        assert!((speed_at(90.0, None) - 0.02).abs() < 1e-12);
     }
 
     #[test]

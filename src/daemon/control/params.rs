@@ -292,6 +292,9 @@ pub struct LoopParams {
     /// Holding, this × the resolvers' motor speed is taken off the speed command
     /// (dimensionless; 0: off).
     pub hold_damping: f64,
+    /// The payload at which the position gain is halved, N (`None`: the gain does not depend
+    /// on the payload; [`LoopParams::loop_gain`]).
+    pub gain_payload_n: Option<f64>,
     /// Torque constants, N·m/A.
     pub torque_constants: [f64; 6],
     /// Payload hung at the tool, N.
@@ -308,6 +311,17 @@ pub struct LoopParams {
     pub stream_deadline_s: f64,
 }
 
+impl LoopParams {
+    /// The position gain in force, 1/s: `gain / (1 + payload_n / gain_payload_n)` with a
+    /// payload-scheduled gain, else `gain`.
+    pub fn loop_gain(&self) -> f64 {
+        match self.gain_payload_n {
+            Some(h) if h > 0.0 => self.gain / (1.0 + self.payload_n.max(0.0) / h),
+            _ => self.gain,
+        }
+    }
+}
+
 /// Loop parameters for the unit tests of the loop and the core: 500 Hz, gain 20, measured
 /// torques through a 20 Hz filter with 10 N·m/A constants, the nominal model's position
 /// limits, 1 rad/s and 2 rad/s² on every joint, a 0.01 rad following-error limit, 20 ms
@@ -322,6 +336,7 @@ pub(crate) fn test_params() -> LoopParams {
         filter_hz: 20.0,
         hold_deadband: 0.0,
         hold_damping: 0.0,
+        gain_payload_n: None,
         torque_constants: [10.0; 6],
         payload_n: 0.0,
         payload_com: [0.0; 3],
