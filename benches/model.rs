@@ -86,7 +86,7 @@ fn bench(c: &mut Criterion) {
         filter_hz: 20.0,
         hold_deadband: 4e-5,
         hold_damping: 1.0,
-        gain_payload_n: Some(90.0),
+        gain_inertia_kgm2: Some(8.5),
         torque_constants: [15.0, 30.0, 15.0, 5.0, 5.0, 2.0],
         payload_n: 44.0,
         payload_com: [0.0; 3],

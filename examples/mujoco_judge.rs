@@ -23,7 +23,7 @@
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--discover]
 //! [--no-recalibrate] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
-//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--gain-payload-n N] [--check-ratio R] [--trace FILE]`
+//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--gain-inertia KGM2] [--check-ratio R] [--trace FILE]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
 //! lab: `pa10 identify` first, `torque_source: estimated`, `hold_damping: 1`. Needs `pip install
 //! mujoco` (the Python interpreter `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another
@@ -86,8 +86,8 @@ struct Opts {
     hold_deadband: f64,
     /// The daemon's `control.hold_damping`.
     hold_damping: f64,
-    /// The daemon's `control.gain_payload_n`, N (0: the gain does not depend on the payload).
-    gain_payload_n: f64,
+    /// The daemon's `control.gain_inertia_kgm2`, kg·m² (0: a constant gain).
+    gain_inertia: f64,
     /// `--check`'s bound on calibrated mean / floor (default 2 quick, 1.3 full).
     check_ratio: Option<f64>,
     /// `--trace FILE`: every move's and settle's samples as CSV (for finding what rings).
@@ -114,7 +114,7 @@ fn opts() -> Result<Opts> {
         identify: true,
         hold_deadband: 1e-4,
         hold_damping: 1.0,
-        gain_payload_n: 90.0,
+        gain_inertia: 8.5,
         check_ratio: None,
         trace: None,
         discover: false,
@@ -163,10 +163,10 @@ fn opts() -> Result<Opts> {
                     .parse()
                     .context("--hold-deadband: rad")?;
             }
-            "--gain-payload-n" => {
-                o.gain_payload_n = value("--gain-payload-n")?
+            "--gain-inertia" => {
+                o.gain_inertia = value("--gain-inertia")?
                     .parse()
-                    .context("--gain-payload-n: a number of newtons (0: off)")?;
+                    .context("--gain-inertia: kg·m² (0: a constant gain)")?;
             }
             "--hold-damping" => {
                 o.hold_damping = value("--hold-damping")?
@@ -192,7 +192,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-payload-n N, --check-ratio R, --trace FILE)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE)"
             ),
         }
     }
@@ -272,8 +272,8 @@ struct Outcome {
     hold_deadband: f64,
     /// The daemon's `control.hold_damping`.
     hold_damping: f64,
-    /// The daemon's `control.gain_payload_n`, N (0: off).
-    gain_payload_n: f64,
+    /// The daemon's `control.gain_inertia_kgm2`, kg·m² (0: a constant gain).
+    gain_inertia_kgm2: f64,
     identification: Option<Identification>,
     /// With `--discover`: the effects named, in the order added (`pa10 discover --json`'s).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -298,6 +298,8 @@ struct Identification {
     coulomb_nm: [f64; 6],
     /// Identified viscous friction per joint, N·m·s/rad.
     viscous_nms: [f64; 6],
+    /// Identified breakaway level per joint (the sweeps' starts), N·m; 0 where none.
+    breakaway_nm: [f64; 6],
     /// Per joint, RMS over the novel poses at rest at 0 N of the model's gravity torque −
     /// MuJoCo's spring torque, N·m: the nominal masses, the identified ones.
     gravity_rms_nm: [[f64; 6]; 2],
@@ -422,8 +424,8 @@ fn settings(dir: &Path, o: &Opts) -> Result<Settings> {
                 o.filter_hz.unwrap_or(20.0),
                 o.hold_deadband,
                 o.hold_damping,
-                if o.gain_payload_n > 0.0 {
-                    format!("\n  gain_payload_n: {}", o.gain_payload_n)
+                if o.gain_inertia > 0.0 {
+                    format!("\n  gain_inertia_kgm2: {}", o.gain_inertia)
                 } else {
                     String::new()
                 }
@@ -868,7 +870,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         torque_source: o.torque_source.clone(),
         hold_deadband: o.hold_deadband,
         hold_damping: o.hold_damping,
-        gain_payload_n: o.gain_payload_n,
+        gain_inertia_kgm2: o.gain_inertia,
         identification,
         discovered: discovery.as_ref().map(|(d, _, _)| d.effects.clone()),
         discovery: discovery.map(|(d, secs, rows)| DiscoverySummary {
@@ -968,6 +970,7 @@ fn identify_through(
         samples: samples.len(),
         tour_s: ls.now() - t,
         coulomb_nm: id.friction.map(|f| f.coulomb),
+        breakaway_nm: id.friction.map(|f| f.breakaway.unwrap_or(0.0)),
         viscous_nms: id.friction.map(|f| f.viscous),
         gravity_rms_nm: [[0.0; 6]; 2],
     };
@@ -1249,11 +1252,12 @@ fn print(o: &Outcome) {
     if let Some(i) = &o.identification {
         let row = |v: &[f64; 6]| v.map(|x| format!("{x:.2}")).join(" / ");
         println!(
-            "\nIdentified through the daemon ({} samples, {:.0} s tour): Coulomb {} N·m, viscous {} N·m·s/rad",
+            "\nIdentified through the daemon ({} samples, {:.0} s tour): Coulomb {} N·m, viscous {} N·m·s/rad, breakaway {} N·m",
             i.samples,
             i.tour_s,
             row(&i.coulomb_nm),
-            row(&i.viscous_nms)
+            row(&i.viscous_nms),
+            row(&i.breakaway_nm)
         );
         println!(
             "Gravity torque − MuJoCo's spring torque at rest, RMS over the novel poses per joint: nominal masses {} N·m, identified {} N·m",

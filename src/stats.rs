@@ -337,6 +337,23 @@ pub fn t_quantile(p: f64, nu: f64) -> f64 {
         + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu * nu * nu)
 }
 
+/// The median of `v` (sorted in place; NaNs last), `None` when empty.
+///
+/// ```
+/// assert_eq!(pa10::stats::median(&mut [3.0, 1.0, 2.0]), Some(2.0));
+/// assert_eq!(pa10::stats::median(&mut [4.0, 1.0, 2.0, 3.0]), Some(2.5));
+/// assert_eq!(pa10::stats::median(&mut []), None);
+/// ```
+pub fn median(v: &mut [f64]) -> Option<f64> {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    match n {
+        0 => None,
+        _ if n % 2 == 1 => Some(v[n / 2]),
+        _ => Some(0.5 * (v[n / 2 - 1] + v[n / 2])),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

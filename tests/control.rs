@@ -34,7 +34,7 @@ fn params() -> LoopParams {
         filter_hz: 20.0,
         hold_deadband: 0.0,
         hold_damping: 0.0,
-        gain_payload_n: None,
+        gain_inertia_kgm2: None,
         torque_constants: SIM_TORQUE_CONSTANTS,
         payload_n: 0.0,
         payload_com: [0.0; 3],

@@ -126,6 +126,50 @@ pub fn samples(polls: &[Poll], kt: &[f64; 6], min_speed: f64) -> Vec<Sample> {
         .collect()
 }
 
+/// How long after a sweep starts its status is polled every control cycle for [`breakaway`], s.
+pub const START_WINDOW_S: f64 = 0.4;
+
+/// Least setpoint travel of a joint over a start window for it to count as starting, rad.
+const MIN_START_RAD: f64 = 1e-4;
+
+/// Per joint, the breakaway level (N·m) from the polls of sweep starts (`starts`: each the
+/// polls of one sweep's first [`START_WINDOW_S`], every control cycle): in each start where a
+/// joint's setpoint travels, the peak of `direction × (current × kt − gravity(q))` with
+/// `model`'s gravity — at rest the drive holds what it held, the torque then rises until the
+/// drive breaks away and falls to the sliding level — and the median over the starts in both
+/// directions. `None` for a joint with fewer than two starts.
+pub fn breakaway(model: &Model, starts: &[Vec<Poll>], kt: &[f64; 6]) -> [Option<f64>; 6] {
+    let mut peaks: [Vec<f64>; 6] = Default::default();
+    for polls in starts {
+        let (Some(first), Some(last)) = (polls.first(), polls.last()) else {
+            continue;
+        };
+        for (j, peak) in peaks.iter_mut().enumerate() {
+            let travel = last.setpoint[j] - first.setpoint[j];
+            if travel.abs() < MIN_START_RAD {
+                continue;
+            }
+            let p = polls
+                .iter()
+                .map(|p| {
+                    let g = model.static_torques(&p.setpoint, &ExternalLoad::NONE)[j];
+                    travel.signum() * (p.current[j] * kt[j] - g)
+                })
+                .fold(f64::NEG_INFINITY, f64::max);
+            if p.is_finite() {
+                peak.push(p.max(0.0));
+            }
+        }
+    }
+    peaks.map(|mut v| {
+        if v.len() >= 2 {
+            crate::stats::median(&mut v)
+        } else {
+            None
+        }
+    })
+}
+
 /// The gravity regressor at link angles `q`: `τ_g = Y·φ` (N·m) with `φ` the four parameters of
 /// each frame in [`FRAMES`] (kg, kg·m), in the model's convention (the torques the drives
 /// apply to hold the arm).
@@ -291,6 +335,7 @@ pub fn identify(model: &Model, samples: &[Sample]) -> Result<Identified, Identif
         params: std::array::from_fn(|p| x[p]),
         params_sigma: std::array::from_fn(|p| cov[(p, p)].sqrt()),
         friction: std::array::from_fn(|j| Friction {
+            breakaway: None,
             coulomb: x[NG + 2 * j].max(0.0),
             viscous: x[NG + 2 * j + 1].max(0.0),
             sigma: Some([

@@ -121,6 +121,11 @@ pub struct Friction {
     /// Standard errors of `coulomb` (N·m) and `viscous` (N·m·s/rad) from the identification.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sigma: Option<[f64; 2]>,
+    /// Breakaway level, N·m (≥ 0): the torque beyond gravity a drive at rest needed to start
+    /// moving (the median over the identification's sweep starts). Above `coulomb` on a drive
+    /// that sticks; about `coulomb` on one that creeps.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub breakaway: Option<f64>,
 }
 
 impl Friction {
@@ -142,6 +147,7 @@ impl Friction {
         let fields = [
             ("coulomb", self.coulomb, "N·m"),
             ("viscous", self.viscous, "N·m·s/rad"),
+            ("breakaway", self.breakaway.unwrap_or(0.0), "N·m"),
         ];
         for (name, v, unit) in fields {
             if !(v.is_finite() && v >= 0.0) {

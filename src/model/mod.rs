@@ -18,6 +18,7 @@ mod compliance;
 mod file;
 mod frame;
 mod ik;
+mod inertia;
 mod joint_error;
 mod kinematics;
 mod load_effects;

@@ -117,7 +117,7 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
             let loaded = sweep::gather(&mut AsSession(api.as_mut()), tour, &a.speeds);
             api.hang_weight(0.0)?;
             set_payload(api.as_mut(), 0.0)?;
-            let with = identify::samples(&loaded?, &kt, sweep::MIN_SAMPLE_SPEED);
+            let with = identify::samples(&loaded?.polls, &kt, sweep::MIN_SAMPLE_SPEED);
             Some(torque_check::check(&model, samples, &with, n)?)
         }
         None => None,
@@ -153,18 +153,23 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
         run.polls,
         a.out.display()
     );
-    println!("\n| joint | Coulomb [N·m] | viscous [N·m·s/rad] | residual RMS [N·m] | rows |");
-    println!("|---|---|---|---|---|");
+    println!(
+        "\n| joint | Coulomb [N·m] | viscous [N·m·s/rad] | breakaway [N·m] | residual RMS [N·m] | rows |"
+    );
+    println!("|---|---|---|---|---|---|");
     for j in 0..6 {
         let f = id.friction[j];
         let s = f.sigma.unwrap_or([0.0; 2]);
         println!(
-            "| J{} | {:.2} ± {:.2} | {:.2} ± {:.2} | {:.2} | {} |",
+            "| J{} | {:.2} ± {:.2} | {:.2} ± {:.2} | {} | {:.2} | {} |",
             j + 1,
             f.coulomb,
             s[0],
             f.viscous,
             s[1],
+            out.data().friction[j]
+                .and_then(|f| f.breakaway)
+                .map_or_else(|| "—".to_string(), |b| format!("{b:.2}")),
             id.residual_rms[j],
             id.rows[j]
         );

@@ -22,6 +22,10 @@ pub trait Session {
 
 /// Status poll interval of a sweep, s.
 pub const POLL_S: f64 = 0.02;
+/// Status poll interval over a sweep's first `calib::identify::START_WINDOW_S`, s (the
+/// control cycle of the shipped configurations): the drives' breakaway peaks last a few
+/// cycles.
+pub const START_POLL_S: f64 = 0.002;
 /// Acceleration of the fastest joint at the start and end of every sweep, rad/s² (within the
 /// daemon's default limits of every joint).
 pub const SWEEP_ACCEL: f64 = 0.4;
@@ -58,12 +62,22 @@ pub enum SweepError {
     Identify(#[from] IdentifyError),
 }
 
+/// What [`gather`] polled.
+#[derive(Debug, Clone, Default)]
+pub struct Gathered {
+    /// Every [`POLL_S`] while the arm moved.
+    pub polls: Vec<Poll>,
+    /// Per sweep, every [`START_POLL_S`] over its first `calib::identify::START_WINDOW_S`
+    /// (`calib::identify::breakaway`).
+    pub starts: Vec<Vec<Poll>>,
+}
+
 /// What [`identify_through`] did and found.
 #[derive(Debug, Clone)]
 pub struct Identification {
     /// The tour's waypoints, rad (driven again for `calib::torque_check`).
     pub tour: Vec<[f64; 6]>,
-    /// Status polls taken while the arm moved.
+    /// Status polls taken while the arm moved (every [`POLL_S`]).
     pub polls: usize,
     /// The constant-speed samples cut from them (torque constants applied).
     pub samples: Vec<Sample>,
@@ -86,10 +100,17 @@ pub fn identify_through<S: Session + ?Sized>(
 ) -> Result<Identification, SweepError> {
     check_speeds(speeds)?;
     let tour = identify::plan_sweep(model, &status(s)?.setpoint, plan)?;
-    let polls = gather(s, &tour, speeds)?;
-    let samples = identify::samples(&polls, kt, MIN_SAMPLE_SPEED);
-    let identified = identify::identify(model, &samples)?;
+    let gathered = gather(s, &tour, speeds)?;
+    let samples = identify::samples(&gathered.polls, kt, MIN_SAMPLE_SPEED);
+    let mut identified = identify::identify(model, &samples)?;
+    let fitted = identified.apply(model)?;
+    // the breakaway against the identified gravity
+    let breakaway = identify::breakaway(&fitted, &gathered.starts, kt);
+    for (f, b) in identified.friction.iter_mut().zip(breakaway) {
+        f.breakaway = b;
+    }
     let model = identified.apply(model)?;
+    let polls = gathered.polls;
     Ok(Identification {
         tour,
         polls: polls.len(),
@@ -144,7 +165,8 @@ pub fn schedule(tour: &[[f64; 6]], speeds: &[f64]) -> Vec<([f64; 6], [f64; 6], f
 
 /// Drives `tour` (joint angles, rad) out and back — every segment both ways at the same
 /// speed, segment i at `speeds[i]`, cyclically (rad/s of the fastest joint) — and polls the
-/// status every [`POLL_S`] while the arm moves. The same speed both ways puts every
+/// status every [`POLL_S`] while the arm moves (every [`START_POLL_S`] over each sweep's
+/// first `calib::identify::START_WINDOW_S`, kept apart for the breakaway). The same speed both ways puts every
 /// configuration in the data at +q̇ and −q̇: friction, whatever its shape, is odd in q̇ and
 /// gravity even, so a friction law the fit does not know (a creeping drive's, one rising with
 /// speed) cannot leak into the identified gravity; the speed levels across segments separate
@@ -153,9 +175,9 @@ pub fn gather<S: Session + ?Sized>(
     s: &mut S,
     tour: &[[f64; 6]],
     speeds: &[f64],
-) -> Result<Vec<Poll>, SweepError> {
+) -> Result<Gathered, SweepError> {
     check_speeds(speeds)?;
-    let mut polls = Vec::new();
+    let mut out = Gathered::default();
     for (a, b, speed) in schedule(tour, speeds) {
         let Some(seg) = identify::sweep_segment(&a, &b, speed, SWEEP_ACCEL) else {
             continue;
@@ -179,8 +201,11 @@ pub fn gather<S: Session + ?Sized>(
             },
         )?;
         let start = s.clock_s();
+        let mut opening = Vec::new();
+        let mut last_poll = start;
         loop {
-            s.pause(POLL_S);
+            let starting = s.clock_s() - start < identify::START_WINDOW_S;
+            s.pause(if starting { START_POLL_S } else { POLL_S });
             let st = status(s)?;
             match st.state {
                 State::Fault => return Err(SweepError::Fault(st.fault.unwrap_or_default())),
@@ -188,14 +213,23 @@ pub fn gather<S: Session + ?Sized>(
                 _ if s.clock_s() - start > MAX_SWEEP_S => return Err(SweepError::Timeout),
                 _ => {}
             }
-            polls.push(Poll {
+            let poll = Poll {
                 t: st.time_s,
                 setpoint: st.setpoint,
                 current: st.current,
-            });
+            };
+            if starting {
+                opening.push(poll);
+            }
+            // the steady cadence the constant-speed samples are cut at
+            if s.clock_s() - last_poll >= POLL_S - 1e-9 {
+                last_poll = s.clock_s();
+                out.polls.push(poll);
+            }
         }
+        out.starts.push(opening);
     }
-    Ok(polls)
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -152,20 +152,20 @@ fn every_error_names_its_key() {
         );
         assert!(err(&text).contains("`control.hold_damping`"), "{bad}");
     }
-    for bad in ["0", "-90", ".nan", "1e9"] {
+    for bad in ["0", "-8", ".nan", "1e9"] {
         let text = y.replace(
             "current_filter_hz: 20.0",
-            &format!("current_filter_hz: 20.0\n  gain_payload_n: {bad}"),
+            &format!("current_filter_hz: 20.0\n  gain_inertia_kgm2: {bad}"),
         );
-        assert!(err(&text).contains("`control.gain_payload_n`"), "{bad}");
+        assert!(err(&text).contains("`control.gain_inertia_kgm2`"), "{bad}");
     }
     let text = y.replace(
         "current_filter_hz: 20.0",
-        "current_filter_hz: 20.0\n  gain_payload_n: 90",
+        "current_filter_hz: 20.0\n  gain_inertia_kgm2: 8.5",
     );
     let s = Config::parse(&text, "t.yaml")
         .unwrap()
         .validate(&root())
         .unwrap();
-    assert_eq!(s.control.gain_payload_n, Some(90.0));
+    assert_eq!(s.control.gain_inertia_kgm2, Some(8.5));
 }

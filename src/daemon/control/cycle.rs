@@ -203,7 +203,16 @@ impl Controller {
         let mut out = [0.0; 6];
         let mut link = [0.0; 6];
         let holding = matches!(self.activity, Activity::Holding);
-        let gain = self.p.loop_gain();
+        let gain = match self.p.gain_inertia_kgm2 {
+            Some(_) => {
+                let kg = self.p.payload_n / self.model.gravity().norm().max(f64::MIN_POSITIVE);
+                let inertia = self
+                    .model
+                    .link_inertia(&self.setpoint.q, kg, &self.p.payload_com);
+                self.p.loop_gain(inertia[1])
+            }
+            None => self.p.gain,
+        };
         for j in 0..6 {
             let e = target[j] - state.q_motor[j];
             if e.abs() > self.p.following_error {
@@ -384,21 +393,27 @@ mod tests {
     }
 
     #[test]
-    fn a_payload_scheduled_gain_halves_at_its_payload_and_not_without_it() {
+    fn the_gain_falls_in_proportion_to_the_shoulder_inertia_above_its_limit() {
         let s = state(Q0, [0.0; 6], 0.0);
         let mut target = Q0;
         target[1] += 0.001;
-        let speed_at = |payload_n: f64, gain_payload_n: Option<f64>| {
+        let m = Model::nominal();
+        let kg90 = 90.0 / m.gravity().norm();
+        let bare = m.link_inertia(&Q0, 0.0, &[0.0; 3])[1];
+        let loaded = m.link_inertia(&Q0, kg90, &[0.0; 3])[1];
+        assert!(loaded > 1.5 * bare, "{bare} vs {loaded} kg·m²");
+        let speed_at = |payload_n: f64, limit: Option<f64>| {
             let mut p = params();
             p.payload_n = payload_n;
-            p.gain_payload_n = gain_payload_n;
+            p.gain_inertia_kgm2 = limit;
             let c = Controller::new(Model::nominal(), p, &s);
             c.position_loop(&s, &target).expect("within limits").0[1]
         };
-        // gain 20 1/s, 1 mrad: 0.02 rad/s unloaded; 90 N with halving at 90 N: 0.01
-        assert!((speed_at(0.0, Some(90.0)) - 0.02).abs() < 1e-12);
-        assert!((speed_at(90.0, Some(90.0)) - 0.01).abs() < 1e-12);
-        assert!((speed_at(45.0, Some(90.0)) - 0.02 / 1.5).abs() < 1e-12);
+        // gain 20 1/s, 1 mrad: 0.02 rad/s at or below the limit
+        assert!((speed_at(0.0, Some(bare)) - 0.02).abs() < 1e-12);
+        let expected = 0.02 * bare / loaded;
+        assert!((speed_at(90.0, Some(bare)) - expected).abs() < 1e-12);
+        assert!((speed_at(90.0, Some(loaded * 1.01)) - 0.02).abs() < 1e-12);
         assert!((speed_at(90.0, None) - 0.02).abs() < 1e-12);
     }
 

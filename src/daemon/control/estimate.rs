@@ -115,6 +115,7 @@ mod tests {
     fn with_friction() -> Model {
         let mut d = Model::nominal().data().clone();
         d.friction = [Some(Friction {
+            breakaway: None,
             coulomb: 10.0,
             viscous: 5.0,
             sigma: None,

@@ -292,9 +292,9 @@ pub struct LoopParams {
     /// Holding, this × the resolvers' motor speed is taken off the speed command
     /// (dimensionless; 0: off).
     pub hold_damping: f64,
-    /// The payload at which the position gain is halved, N (`None`: the gain does not depend
-    /// on the payload; [`LoopParams::loop_gain`]).
-    pub gain_payload_n: Option<f64>,
+    /// The shoulder's (J2's) inertia up to which the position gain applies in full, kg·m²
+    /// (`None`: the gain does not depend on the inertia; [`LoopParams::loop_gain`]).
+    pub gain_inertia_kgm2: Option<f64>,
     /// Torque constants, N·m/A.
     pub torque_constants: [f64; 6],
     /// Payload hung at the tool, N.
@@ -312,11 +312,14 @@ pub struct LoopParams {
 }
 
 impl LoopParams {
-    /// The position gain in force, 1/s: `gain / (1 + payload_n / gain_payload_n)` with a
-    /// payload-scheduled gain, else `gain`.
-    pub fn loop_gain(&self) -> f64 {
-        match self.gain_payload_n {
-            Some(h) if h > 0.0 => self.gain / (1.0 + self.payload_n.max(0.0) / h),
+    /// The position gain in force (1/s) when the shoulder's drive moves `shoulder_kgm2`
+    /// (kg·m², [`Model::link_inertia`](crate::model::Model::link_inertia)'s J2):
+    /// `gain × min(1, gain_inertia_kgm2 / shoulder_kgm2)`, or `gain` unscheduled. The drive's
+    /// speed loop slows in proportion to the inertia it moves; the position loop around it
+    /// slows with it, keeping the cascade's margin (docs/daemon.md).
+    pub fn loop_gain(&self, shoulder_kgm2: f64) -> f64 {
+        match self.gain_inertia_kgm2 {
+            Some(limit) if shoulder_kgm2 > limit => self.gain * limit / shoulder_kgm2,
             _ => self.gain,
         }
     }
@@ -336,7 +339,7 @@ pub(crate) fn test_params() -> LoopParams {
         filter_hz: 20.0,
         hold_deadband: 0.0,
         hold_damping: 0.0,
-        gain_payload_n: None,
+        gain_inertia_kgm2: None,
         torque_constants: [10.0; 6],
         payload_n: 0.0,
         payload_com: [0.0; 3],
