@@ -636,6 +636,54 @@ pub(crate) mod tests {
         assert!(m.friction(1).is_some() && m.data().bodies.iter().all(|b| b.sigma.is_some()));
     }
 
+    /// Sweep starts of a sticking drive: at rest it holds a random torque, then the torque
+    /// rises until it breaks away at 1.6 × Coulomb and falls to the sliding level; J6 never
+    /// moves. The breakaway comes back per joint; J6 has none.
+    #[test]
+    fn the_breakaway_is_the_peak_over_gravity_at_the_sweeps_starts() {
+        let m = Model::nominal();
+        let fc = [12.0, 27.0, 13.0, 4.5, 4.0, 1.8];
+        let mut rng = Pcg64::seed_from_u64(3);
+        let mut starts = Vec::new();
+        for k in 0..6 {
+            let dir = if k % 2 == 0 { 1.0 } else { -1.0 };
+            let q0 = [0.1 * k as f64, 0.4, 1.4, 0.2, 0.9, 0.0];
+            let held: [f64; 6] = std::array::from_fn(|j| rng.random_range(-1.0..1.0) * fc[j]);
+            let polls: Vec<Poll> = (0..200)
+                .map(|i| {
+                    let t = i as f64 * 0.002;
+                    let mut q = q0;
+                    for qj in q.iter_mut().take(5) {
+                        *qj += dir * 0.2 * t * t; // 0.4 rad/s² from rest
+                    }
+                    let g = m.static_torques(&q, &ExternalLoad::NONE);
+                    let current = std::array::from_fn(|j| {
+                        // held, rising over 0.1 s (50 polls) to breakaway, then sliding
+                        let f = if i <= 50 {
+                            held[j] + (dir * 1.6 * fc[j] - held[j]) * i as f64 / 50.0
+                        } else {
+                            dir * fc[j]
+                        };
+                        g[j] + f + 0.05 * rng.random_range(-1.0..1.0)
+                    });
+                    Poll {
+                        t,
+                        setpoint: q,
+                        current,
+                    }
+                })
+                .collect();
+            starts.push(polls);
+        }
+        let b = breakaway(&m, &starts, &[1.0; 6]);
+        for j in 0..5 {
+            let got = b[j].expect("moved");
+            assert!((got - 1.6 * fc[j]).abs() < 0.1, "J{}: {got}", j + 1);
+        }
+        assert_eq!(b[5], None, "J6 never moved");
+        assert_eq!(breakaway(&m, &starts[..1], &[1.0; 6])[0], None, "one start");
+    }
+
     #[test]
     fn too_few_rows_and_bad_plans_are_refused_with_the_reason() {
         let e = identify(&Model::nominal(), &[]).unwrap_err();
