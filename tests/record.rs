@@ -22,11 +22,16 @@ fn temp(tag: &str) -> PathBuf {
 
 /// The daemon in simulated time, recording into `dir`.
 fn lockstep(dir: &Path) -> Lockstep {
+    lockstep_into(dir, dir)
+}
+
+/// The daemon in simulated time, its configuration in `dir`, recording into `records`.
+fn lockstep_into(dir: &Path, records: &Path) -> Lockstep {
     let cfg = crate::daemon::config(dir, &Model::nominal());
     let text = std::fs::read_to_string(&cfg).unwrap();
     let text = text.replace(
         "  dir: /tmp/pa10d-recordings",
-        &format!("  dir: {}\n  max_file_mb: 0.05", dir.display()),
+        &format!("  dir: {}\n  max_file_mb: 0.05", records.display()),
     );
     assert!(text.contains("max_file_mb: 0.05"));
     std::fs::write(&cfg, text).unwrap();
@@ -356,4 +361,37 @@ fn still_phases_are_cut_from_a_recording() {
         assert!(p.cycles > 300);
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A `record.dir` that does not exist yet (the simulated configuration's on a fresh machine) is
+/// created, with the recorder's mode, when the first recording starts; one that cannot be
+/// created is refused with the key and the reason, and nothing is started.
+#[test]
+fn a_missing_record_dir_is_created_and_an_impossible_one_refused() {
+    use std::os::unix::fs::PermissionsExt;
+    let root = temp("mkdir");
+    let dir = root.join("not").join("yet");
+    let mut ls = lockstep_into(&root, &dir);
+    assert!(!dir.exists());
+    let r = ls.call_json(&json!({"cmd": "record_start", "file": "first", "duration_s": 0.2}));
+    assert_eq!(r["ok"], true, "{r}");
+    ls.run_for(0.5);
+    assert_eq!(finished(&ls)["active"], false);
+    assert!(dir.join("first.mcap").is_file());
+    let mode = std::fs::metadata(&dir).unwrap().permissions().mode() & 0o777;
+    assert_eq!(
+        mode & !0o022,
+        pa10::record::RECORD_DIR_MODE & !0o022,
+        "{mode:o}"
+    );
+    // a folder under a plain file cannot be made
+    let file = root.join("plain");
+    std::fs::write(&file, b"x").unwrap();
+    let mut ls = lockstep_into(&root, &file.join("sub"));
+    let r = ls.call_json(&json!({"cmd": "record_start", "file": "second"}));
+    assert_eq!(r["ok"], false, "{r}");
+    let e = r["error"].to_string();
+    assert!(e.contains("record.dir could not be created"), "{e}");
+    assert_ne!(recording(&ls)["active"], true, "nothing started");
+    std::fs::remove_dir_all(&root).unwrap();
 }

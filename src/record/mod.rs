@@ -308,8 +308,9 @@ pub struct Recorder;
 
 impl Recorder {
     /// Starts a recording to `name` inside `cfg.dir` (a plain file name; `.mcap` added when
-    /// missing): opens the first file (so a bad name or folder is refused now, not later),
-    /// starts the writer thread and returns the core's tap.
+    /// missing): creates `cfg.dir` when it does not exist ([`RECORD_DIR_MODE`]), opens the
+    /// first file (so a bad name or folder is refused now, not later), starts the writer
+    /// thread and returns the core's tap.
     pub fn start(
         cfg: &RecordConfig,
         name: &str,
@@ -317,6 +318,7 @@ impl Recorder {
     ) -> Result<RecordTap, RecordError> {
         cfg.validate().map_err(RecordError::Config)?;
         let base = file_in(&cfg.dir, name)?;
+        create_dir(&cfg.dir)?;
         if base.exists() {
             return Err(RecordError::Exists(base));
         }
@@ -389,6 +391,25 @@ pub fn file_in(dir: &Path, name: &str) -> Result<PathBuf, RecordError> {
         f.set_extension("mcap");
     }
     Ok(f)
+}
+
+/// Mode of a recording folder the recorder creates: the daemon's user and group read it.
+pub const RECORD_DIR_MODE: u32 = 0o750;
+
+/// Creates `dir` (and its parents) with [`RECORD_DIR_MODE`] unless it is a folder already.
+fn create_dir(dir: &Path) -> Result<(), RecordError> {
+    use std::os::unix::fs::DirBuilderExt;
+    if dir.is_dir() {
+        return Ok(());
+    }
+    std::fs::DirBuilder::new()
+        .recursive(true)
+        .mode(RECORD_DIR_MODE)
+        .create(dir)
+        .map_err(|e| RecordError::Io {
+            path: dir.to_path_buf(),
+            error: format!("record.dir could not be created: {e}"),
+        })
 }
 
 /// The `i`-th file of a recording: `base` itself, then `base-001.mcap`, …

@@ -9,6 +9,7 @@ use anyhow::{Result, bail};
 use clap::{Args, Subcommand};
 use pa10::daemon::api::Client;
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
+use pa10::model::Model;
 
 /// Where the daemon listens.
 #[derive(Debug, Args, Clone)]
@@ -176,25 +177,7 @@ fn print_status(c: &Conn, s: &Status) -> Result<()> {
     if c.json {
         return print_json(&Reply::Ok(Answer::Status(Box::new(s.clone()))));
     }
-    println!(
-        "state {} (servo {}){}",
-        s.state,
-        s.servo.as_deref().unwrap_or("unknown"),
-        s.fault
-            .as_ref()
-            .map(|f| format!(": {f}"))
-            .unwrap_or_default()
-    );
-    println!(
-        "tool  position {:?} m, quaternion {:?}",
-        s.tool_position, s.tool_quaternion
-    );
-    println!("joints (setpoint, rad) {:?}", s.setpoint);
-    println!(
-        "payload {} N; cycle {}",
-        s.payload_n,
-        serde_json::to_string(&s.cycle)?
-    );
+    print!("{}", crate::view::render(s, Model::nominal().limits()));
     Ok(())
 }
 
@@ -274,9 +257,28 @@ pub fn simple(c: &Conn, req: ApiRequest) -> Result<()> {
 
 /// `pa10 watch`: the status stream.
 pub fn watch(c: &Conn, rate_hz: f64) -> Result<()> {
+    use std::io::{IsTerminal, Write};
+    let terminal = !c.json && std::io::stdout().is_terminal();
+    let limits = *Model::nominal().limits();
+    let mut last = String::new();
     for reply in c.client().subscribe(rate_hz)? {
         match reply? {
-            Reply::Ok(Answer::Status(s)) => print_status(c, &s)?,
+            Reply::Ok(Answer::Status(s)) if c.json => print_status(c, &s)?,
+            Reply::Ok(Answer::Status(s)) if terminal => {
+                // redraw in place: home, the view, clear what the last one left below
+                let mut out = std::io::stdout().lock();
+                write!(out, "\x1b[H{}\x1b[J", crate::view::render(&s, &limits))?;
+                out.flush()?;
+            }
+            Reply::Ok(Answer::Status(s)) => {
+                // piped: one line per change (the time alone is no change)
+                let text = crate::view::line(&s);
+                let body = text.split_once(" · ").map_or(text.as_str(), |(_, b)| b);
+                if body != last {
+                    last = body.to_string();
+                    println!("{text}");
+                }
+            }
             Reply::Ok(other) => bail!("pa10d sent {other:?} in a status stream"),
             Reply::Refused(e) => bail!("pa10d refused: {e}"),
         }

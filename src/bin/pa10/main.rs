@@ -16,6 +16,7 @@ mod motion_cmd;
 mod plan_cmd;
 mod record_cmd;
 mod sim_cmd;
+mod view;
 
 use std::process::ExitCode;
 
