@@ -387,7 +387,7 @@ fn a_missing_record_dir_is_created_and_an_impossible_one_refused() {
     // a folder under a plain file cannot be made
     let file = root.join("plain");
     std::fs::write(&file, b"x").unwrap();
-    let mut ls = lockstep_into(&root, &file.join("sub"));
+    let ls = lockstep_into(&root, &file.join("sub"));
     let r = ls.call_json(&json!({"cmd": "record_start", "file": "second"}));
     assert_eq!(r["ok"], false, "{r}");
     let e = r["error"].to_string();
