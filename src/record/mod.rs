@@ -7,10 +7,12 @@
 //! channels and zstd chunks, rotating by size within a disk budget. A full queue, a slow,
 //! full or read-only disk drops records and counts them ([`RecorderStats`]); the core never
 //! waits. [`read`] reads recordings back (info, CSV export, the still phases a calibration
-//! campaign is cut from).
+//! campaign is cut from); [`recover`] rewrites one cut short by a crash as a whole MCAP file
+//! the standard readers read.
 
 mod mode;
 pub mod read;
+pub mod recover;
 
 pub use mode::{Mode, describe_codes};
 
@@ -328,7 +330,7 @@ impl Recorder {
                 let path = rotated(&base, i);
                 let f = File::options().write(true).create_new(true).open(&path)?;
                 Ok((
-                    Box::new(BufWriter::with_capacity(1 << 16, f)) as Box<dyn Sink>,
+                    Box::new(BufWriter::with_capacity(SINK_BUFFER, f)) as Box<dyn Sink>,
                     path,
                 ))
             })
@@ -392,6 +394,15 @@ pub fn file_in(dir: &Path, name: &str) -> Result<PathBuf, RecordError> {
     }
     Ok(f)
 }
+
+/// Largest chunk the recorder writes, bytes of JSON before compression: a chunk reaches the
+/// file when it closes, so a crash loses at most this much (≈ 160 cycles of ≈ 830 bytes, 0.3 s at 500 Hz,
+/// docs/recording.md) plus what the queue held; `pa10 record recover` rewrites the rest.
+pub const CHUNK_BYTES: u64 = 128 << 10;
+
+/// The file's write buffer, bytes (compressed chunks): smaller than a chunk, so a closed chunk
+/// is on its way to the disk rather than waiting in memory for the next ones.
+const SINK_BUFFER: usize = 8 << 10;
 
 /// Mode of a recording folder the recorder creates: the daemon's user and group read it.
 pub const RECORD_DIR_MODE: u32 = 0o750;
@@ -475,8 +486,8 @@ impl Writer {
             .profile("")
             .library("pa10d")
             // chunks reach the file when closed: at most half a file, so rotation and the
-            // budget see the size in time
-            .chunk_size(Some((1u64 << 20).min(self.max_file / 2).max(4096)))
+            // budget see the size in time, and CHUNK_BYTES, what a crash can lose
+            .chunk_size(Some(CHUNK_BYTES.min(self.max_file / 2).max(4096)))
             .create(Counted {
                 inner: sink,
                 pos: 0,

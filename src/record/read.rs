@@ -47,7 +47,8 @@ pub struct Info {
     pub truncated: Option<String>,
 }
 
-fn load(path: &Path) -> Result<Vec<u8>, ReadError> {
+/// The bytes of `path`, at most [`MAX_READ_BYTES`].
+pub(crate) fn load(path: &Path) -> Result<Vec<u8>, ReadError> {
     let io = |e: std::io::Error| ReadError::Io {
         path: path.to_path_buf(),
         error: e.to_string(),

@@ -1,4 +1,4 @@
-//! `pa10 record start|stop|info|export`: recording every control cycle to MCAP through the
+//! `pa10 record start|stop|info|recover|export`: recording every control cycle to MCAP through the
 //! daemon, and reading recordings back (docs/recording.md).
 
 use std::path::PathBuf;
@@ -30,6 +30,18 @@ pub enum RecordCmd {
     Info {
         /// The MCAP file.
         file: PathBuf,
+        /// Print JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Rewrite a recording cut short by a crash (`kill -9`, a power loss) as a whole MCAP
+    /// file (summary and indexes) that the standard readers read: every message before the
+    /// damage.
+    Recover {
+        /// The damaged MCAP file.
+        input: PathBuf,
+        /// The new file (refused when it exists).
+        output: PathBuf,
         /// Print JSON.
         #[arg(long)]
         json: bool,
@@ -68,6 +80,32 @@ pub fn run(c: &RecordCmd) -> Result<()> {
                 ApiRequest::RecordStop {},
             )?;
             println!("stopped");
+            Ok(())
+        }
+        RecordCmd::Recover {
+            input,
+            output,
+            json,
+        } => {
+            let r = pa10::record::recover::recover(input, output)?;
+            if *json {
+                println!("{}", serde_json::to_string(&r)?);
+                return Ok(());
+            }
+            let n: u64 = r.channels.values().sum();
+            println!(
+                "{}: {n} messages written ({})",
+                output.display(),
+                r.channels
+                    .iter()
+                    .map(|(t, n)| format!("{t} {n}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+            match &r.truncated {
+                Some(t) => println!("  {} ended early ({t}); the rest is lost", input.display()),
+                None => println!("  {} was whole", input.display()),
+            }
             Ok(())
         }
         RecordCmd::Info { file, json } => {
