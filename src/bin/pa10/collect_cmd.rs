@@ -284,14 +284,19 @@ fn drive<A: Api>(
     let mut load = f64::NAN;
     let (mut out, mut inst) = (Vec::new(), Vec::new());
     let stdin = std::io::stdin();
+    let bar = crate::progress::bar(poses.len() as u64, "poses");
     for (k, p) in poses.iter().enumerate() {
+        bar.set_position(k as u64);
+        bar.set_message(format!("pose `{}` at {} N", p.config_id, p.load_n));
         if p.load_n != load {
             hang(api, p.load_n)?;
             set_payload(api, p.load_n)?;
             if !a.yes && a.simulate.is_none() {
-                eprintln!("hang {} N at the tool, then press Enter", p.load_n);
                 let mut line = String::new();
-                stdin.lock().read_line(&mut line)?;
+                bar.suspend(|| {
+                    eprintln!("hang {} N at the tool, then press Enter", p.load_n);
+                    stdin.lock().read_line(&mut line)
+                })?;
             }
             load = p.load_n;
         }
@@ -312,17 +317,20 @@ fn drive<A: Api>(
                     load_n: p.load_n,
                     pose,
                 }),
-                None => eprintln!(
-                    "[{}/{}] {} at {} N: measure it with the instrument now",
-                    k + 1,
-                    poses.len(),
-                    p.config_id,
-                    p.load_n
-                ),
+                None => bar.suspend(|| {
+                    eprintln!(
+                        "[{}/{}] {} at {} N: measure it with the instrument now",
+                        k + 1,
+                        poses.len(),
+                        p.config_id,
+                        p.load_n
+                    )
+                }),
             }
             api.pause(Duration::from_millis(50));
         }
     }
+    bar.finish_and_clear();
     Ok((out, inst))
 }
 

@@ -100,7 +100,12 @@ pub fn run(a: &DiscoverArgs) -> Result<()> {
     if let Some(dir) = &a.report {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let d = discover(&model, &data, holdout.as_ref(), &opts)?;
+    let spin = crate::progress::spinner(
+        "discovering: every candidate effect refitted and cross-validated",
+    );
+    let d = discover(&model, &data, holdout.as_ref(), &opts);
+    spin.finish_and_clear();
+    let d = d?;
     if let Some(out) = &a.out {
         d.model
             .save(out)

@@ -108,13 +108,19 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
             ),
         },
     };
-    let run = sweep::identify_through(&mut AsSession(api.as_mut()), &model, &kt, &plan, &a.speeds)?;
+    let spin = crate::progress::spinner("identifying: sweeping the tour through the daemon");
+    let run = sweep::identify_through(&mut AsSession(api.as_mut()), &model, &kt, &plan, &a.speeds);
+    spin.finish_and_clear();
+    let run = run?;
     let (tour, samples, id, out) = (&run.tour, &run.samples, &run.identified, &run.model);
     let kt_check = match a.known_weight {
         Some(n) => {
             api.hang_weight(n)?;
             set_payload(api.as_mut(), n)?;
+            let spin =
+                crate::progress::spinner("checking the torque constants: the tour again, loaded");
             let loaded = sweep::gather(&mut AsSession(api.as_mut()), tour, &a.speeds);
+            spin.finish_and_clear();
             api.hang_weight(0.0)?;
             set_payload(api.as_mut(), 0.0)?;
             let with = identify::samples(&loaded?.polls, &kt, sweep::MIN_SAMPLE_SPEED);

@@ -14,6 +14,7 @@ mod iso_cmd;
 mod model_cmds;
 mod motion_cmd;
 mod plan_cmd;
+mod progress;
 mod record_cmd;
 mod sim_cmd;
 mod view;

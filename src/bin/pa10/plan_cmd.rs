@@ -137,6 +137,13 @@ const VALIDATION_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
 
 /// `pa10 plan`.
 pub fn run(a: &PlanArgs) -> Result<()> {
+    let spin = crate::progress::spinner("planning: sampling candidate configurations");
+    let r = plan(a, &spin);
+    spin.finish_and_clear();
+    r
+}
+
+fn plan(a: &PlanArgs, spin: &indicatif::ProgressBar) -> Result<()> {
     // the volume: a box or a sphere, in the base frame or (with --instrument-frame) in the
     // instrument's; candidates are sampled in its bounding box in the base frame and kept inside
     let inst = a
@@ -307,6 +314,11 @@ pub fn run(a: &PlanArgs) -> Result<()> {
         Criterion::I => select_by(&infos, n, passes, &i_crit),
         Criterion::D => select(&infos, n, passes),
     };
+    spin.set_message(format!(
+        "planning: choosing {} of {} candidates (exchange)",
+        a.configs,
+        cands.len()
+    ));
     let design = choose(a.configs, 10)?;
     let val: Vec<[f64; 6]> = (1..cands.len())
         .step_by(4)
@@ -358,6 +370,7 @@ pub fn run(a: &PlanArgs) -> Result<()> {
         Some(_) => None,
     };
 
+    spin.set_message("planning: the how-many curve");
     let mut curve = Vec::new();
     for n in [4, 6, 8, 10, 12, 16, 20, 27, 36] {
         if n <= cands.len() {
