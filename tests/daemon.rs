@@ -598,6 +598,15 @@ fn the_daemon_binary_keeps_accepting_after_running_out_of_file_descriptors() {
 /// Starts the `pa10d` binary on the simulated arm with its configuration in `dir` (sim.yaml
 /// with real-time margins for a shared test machine, then `edit`); waits (≤ 10 s) for its
 /// socket.
+/// The `pa10` client run with `args` against the daemon on `sock`.
+fn pa10_on(sock: &Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
+        .args(args)
+        .env("PA10D_SOCKET", sock)
+        .output()
+        .unwrap()
+}
+
 fn spawn_pa10d(dir: &Path, edit: impl FnOnce(String) -> String) -> (Reaped, PathBuf) {
     let cfg = config(dir, &Model::nominal());
     let text = std::fs::read_to_string(&cfg)
@@ -642,13 +651,7 @@ fn a_recording_cut_by_kill_9_is_recovered_whole() {
             &format!("  dir: {}\n  autostart: false", dir.display()),
         )
     });
-    let pa10 = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
-            .args(args)
-            .env("PA10D_SOCKET", &sock)
-            .output()
-            .unwrap()
-    };
+    let pa10 = |args: &[&str]| pa10_on(&sock, args);
     let o = pa10(&["record", "start", "--out", "crash"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     std::thread::sleep(Duration::from_secs(3));
@@ -765,11 +768,7 @@ fn ros2_joint_states_reach_a_dds_implementation_we_did_not_write() {
     let domain = (100 + std::process::id() % 100).to_string();
     let _bridge = ros2_bridge(&sock, &domain, "enhanced");
     // the arm holds: what pa10 status says is what /joint_states must carry
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
-        .args(["status", "--json"])
-        .env("PA10D_SOCKET", &sock)
-        .output()
-        .unwrap();
+    let o = pa10_on(&sock, &["status", "--json"]);
     let v: Value = serde_json::from_slice(&o.stdout).unwrap();
     let q: Vec<String> = v["status"]["trajectory"]["actual"]
         .as_array()
@@ -874,13 +873,7 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     );
     assert!(sock.exists(), "the first daemon's socket is untouched");
     // the pa10 client wraps every call
-    let pa10 = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_pa10"))
-            .args(args)
-            .env("PA10D_SOCKET", &sock)
-            .output()
-            .unwrap()
-    };
+    let pa10 = |args: &[&str]| pa10_on(&sock, args);
     let o = pa10(&["status", "--json"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: Value = serde_json::from_slice(&o.stdout).unwrap();

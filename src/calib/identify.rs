@@ -210,6 +210,19 @@ pub(crate) fn prior_params(model: &Model) -> [f64; NG] {
     phi
 }
 
+/// Every value of every sample is a number; the first that is not is named by its index.
+pub(crate) fn check_finite(samples: &[Sample]) -> Result<(), IdentifyError> {
+    match samples.iter().position(|s| {
+        s.q.iter()
+            .chain(&s.qd)
+            .chain(&s.tau)
+            .any(|v| !v.is_finite())
+    }) {
+        Some(i) => Err(IdentifyError::NotFinite(i)),
+        None => Ok(()),
+    }
+}
+
 /// Per sample: the gravity regressor at its angles, and the torques of the bodies outside
 /// [`FRAMES`] (known: the model's statics less what its [`FRAMES`] bodies give), N·m.
 pub(crate) fn regressors(model: &Model, samples: &[Sample]) -> Vec<([[f64; NG]; 6], [f64; 6])> {
@@ -255,16 +268,7 @@ pub struct Identified {
 /// Fits gravity and friction to `samples` (module documentation), starting from `model`'s
 /// bodies as the weak prior.
 pub fn identify(model: &Model, samples: &[Sample]) -> Result<Identified, IdentifyError> {
-    for (i, s) in samples.iter().enumerate() {
-        if s.q
-            .iter()
-            .chain(&s.qd)
-            .chain(&s.tau)
-            .any(|v| !v.is_finite())
-        {
-            return Err(IdentifyError::NotFinite(i));
-        }
-    }
+    check_finite(samples)?;
     for j in 0..6 {
         let (up, down) = samples
             .iter()

@@ -19,7 +19,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::identify::{
-    IdentifyError, MIN_ROWS, NG, Sample, prior_params, prior_weight, regressors,
+    IdentifyError, MIN_ROWS, NG, Sample, check_finite, prior_params, prior_weight, regressors,
 };
 use crate::model::{ExternalLoad, Model};
 
@@ -126,28 +126,17 @@ pub fn check(
     newtons: f64,
 ) -> Result<TorqueConstantCheck, IdentifyError> {
     check_weight(newtons)?;
-    let all: Vec<(&Sample, bool)> = without
-        .iter()
-        .map(|s| (s, false))
-        .chain(with.iter().map(|s| (s, true)))
-        .collect();
-    for (i, (s, _)) in all.iter().enumerate() {
-        if s.q
-            .iter()
-            .chain(&s.qd)
-            .chain(&s.tau)
-            .any(|v| !v.is_finite())
-        {
-            return Err(IdentifyError::NotFinite(i));
-        }
-    }
-    let samples: Vec<Sample> = all.iter().map(|(s, _)| **s).collect();
+    // the tour without the weight, then with it: sample i is loaded when i ≥ without.len()
+    let samples: Vec<Sample> = without.iter().chain(with).copied().collect();
+    check_finite(&samples)?;
+    let is_loaded = |i: usize| i >= without.len();
     let regs = regressors(model, &samples);
     let prior = prior_params(model);
-    let weight: Vec<[f64; 6]> = all
+    let weight: Vec<[f64; 6]> = samples
         .iter()
-        .map(|(s, loaded)| {
-            if *loaded {
+        .enumerate()
+        .map(|(i, s)| {
+            if is_loaded(i) {
                 weight_torques(model, &s.q, &s.qd, newtons)
             } else {
                 [0.0; 6]
@@ -163,8 +152,10 @@ pub fn check(
         rows: [0; 6],
     };
     for j in 0..6 {
-        let rows: Vec<usize> = (0..all.len()).filter(|&i| samples[i].usable[j]).collect();
-        let loaded: Vec<usize> = rows.iter().copied().filter(|&i| all[i].1).collect();
+        let rows: Vec<usize> = (0..samples.len())
+            .filter(|&i| samples[i].usable[j])
+            .collect();
+        let loaded: Vec<usize> = rows.iter().copied().filter(|&i| is_loaded(i)).collect();
         if rows.len() - loaded.len() < MIN_ROWS || loaded.len() < MIN_ROWS {
             return Err(IdentifyError::TooFewRows {
                 joint: j + 1,

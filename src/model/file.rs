@@ -32,8 +32,11 @@ impl Default for PoseData {
     }
 }
 
+/// Standard gravity, m/s² (a model file's default gravity is this, straight down).
+pub const STANDARD_GRAVITY: f64 = 9.806_65;
+
 fn default_gravity() -> [f64; 3] {
-    [0.0, 0.0, -9.80665]
+    [0.0, 0.0, -STANDARD_GRAVITY]
 }
 
 /// Everything a model file holds: plain data, no derived values.

@@ -31,6 +31,7 @@ pub mod urdf;
 pub use compliance::Stiffness;
 pub use file::{
     Body, BodySigma, EffectRecord, Friction, JointLimits, ModelFile, ParamCovariance, PoseData,
+    STANDARD_GRAVITY,
 };
 pub use ik::{IkError, IkSolutions, MAX_SOLUTIONS};
 pub use joint_error::{DEFAULT_GEAR_RATIO, JointError};

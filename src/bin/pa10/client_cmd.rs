@@ -79,7 +79,7 @@ pub trait Api {
         if newtons > 0.0 {
             eprintln!(
                 "hang a known weight of {newtons} N ({:.3} kg) at the tool point, then press Enter",
-                newtons / 9.806_65
+                newtons / pa10::model::STANDARD_GRAVITY
             );
         } else {
             eprintln!("take the weight off the tool, then press Enter");

@@ -46,7 +46,7 @@ pub fn render(s: &Status, limits: &JointLimits) -> String {
         out,
         "load   {:.1} N ({:.2} kg) at [{:.0}, {:.0}, {:.0}] mm in the tool frame",
         s.payload_n,
-        s.payload_n / 9.806_65,
+        s.payload_n / pa10::model::STANDARD_GRAVITY,
         c[0],
         c[1],
         c[2]

@@ -176,7 +176,9 @@ pub fn handle_from(core: &SharedCore, req: ApiRequest, client: ClientId) -> Repl
                 (None, Some(m)) => {
                     let g = lock(core)
                         .controller()
-                        .map_or(9.80665, |c| c.model().gravity().norm());
+                        .map_or(crate::model::STANDARD_GRAVITY, |c| {
+                            c.model().gravity().norm()
+                        });
                     m * g
                 }
                 _ => return err("set_payload takes either \"newtons\" (N) or \"mass_kg\" (kg)"),

@@ -98,7 +98,6 @@ pub fn identify_through<S: Session + ?Sized>(
     plan: &SweepPlan,
     speeds: &[f64],
 ) -> Result<Identification, SweepError> {
-    check_speeds(speeds)?;
     let tour = identify::plan_sweep(model, &status(s)?.setpoint, plan)?;
     let gathered = gather(s, &tour, speeds)?;
     let samples = identify::samples(&gathered.polls, kt, MIN_SAMPLE_SPEED);
@@ -110,10 +109,9 @@ pub fn identify_through<S: Session + ?Sized>(
         f.breakaway = b;
     }
     let model = identified.apply(model)?;
-    let polls = gathered.polls;
     Ok(Identification {
         tour,
-        polls: polls.len(),
+        polls: gathered.polls.len(),
         samples,
         identified,
         model,
