@@ -1233,7 +1233,11 @@ fn a_move_planned_from_a_setpoint_or_model_that_changed_is_refused() {
     // planned, then the model was replaced: refused too
     let (mv, basis) = plan(&ls, a);
     let model = std::sync::Arc::new(Model::nominal());
-    ls.core.lock().submit(Command::LoadModel(model)).unwrap();
+    let file = "nominal".into();
+    ls.core
+        .lock()
+        .submit(Command::LoadModel { model, file })
+        .unwrap();
     let r = ls.core.lock().submit(Command::Start { mv, basis });
     assert_eq!(r, Err(CommandError::Stale));
     // planned from what is current: accepted
@@ -1373,12 +1377,22 @@ fn load_model_reads_only_regular_files_inside_the_model_dir_and_never_echoes_the
             !e.contains("root:x") && !e.contains("/bin/bash"),
             "{path}: leaks {e}"
         );
+        // the status keeps it, in the same words
+        let last = &status(&ls)["last_refusal"];
+        assert_eq!(last["request"], "load_model", "{last}");
+        assert_eq!(last["error"], e, "{last}");
     }
     // the model next to the configuration loads, by a relative or an absolute path
+    ls.run_for(0.1);
     assert_eq!(load(&ls, "model.yaml")["ok"], true);
     let abs = dir.join("model.yaml");
     assert_eq!(load(&ls, abs.to_str().unwrap())["ok"], true);
-    assert_eq!(status(&ls)["state"], "holding");
+    let st = status(&ls);
+    assert_eq!(st["state"], "holding");
+    let m = &st["model"];
+    assert_eq!(m["file"], abs.to_str().unwrap(), "{m}");
+    assert_eq!(m["kind"], "nominal", "{m}");
+    assert!(m["since_s"].as_f64().unwrap() > 0.0, "{m}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

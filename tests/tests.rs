@@ -19,6 +19,7 @@ mod model_file;
 mod pinocchio;
 mod plan;
 mod properties;
+mod readme;
 mod record;
 mod servo;
 mod trajectory;

@@ -239,12 +239,7 @@ fn run(path: &Path) -> Result<()> {
     // a recording in progress is closed whole (its summary written) before the process ends
     let rec = lock(&daemon.core).stop_recording();
     if let Some(stats) = rec {
-        let end = std::time::Instant::now() + Duration::from_secs(10);
-        while !stats.finished.load(std::sync::atomic::Ordering::SeqCst)
-            && std::time::Instant::now() < end
-        {
-            std::thread::sleep(Duration::from_millis(10));
-        }
+        stats.wait_finished(Duration::from_secs(10));
         tracing::info!(status = ?stats.status(false), "recording closed");
     }
     tracing::info!("stopped");

@@ -326,6 +326,64 @@ pub struct Status {
     pub leased: bool,
     /// The recording in progress, or the last one.
     pub recording: Option<RecordingStatus>,
+    /// The model the compensation uses.
+    #[serde(default)]
+    pub model: Option<ModelStatus>,
+    /// The last request the daemon refused (any client), in its words.
+    #[serde(default)]
+    pub last_refusal: Option<RefusalStatus>,
+}
+
+/// What a model holds, from its contents.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelKind {
+    /// The nominal table: no identified departures, no covariance.
+    Nominal,
+    /// `pa10 calibrate`'s: identified departures (and their covariance).
+    Calibrated,
+    /// A calibrated model that `pa10 discover` extended with named effects.
+    Extended,
+}
+
+impl ModelKind {
+    /// Its name, as the wire spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelKind::Nominal => "nominal",
+            ModelKind::Calibrated => "calibrated",
+            ModelKind::Extended => "extended",
+        }
+    }
+}
+
+/// The model in force (`status.model`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct ModelStatus {
+    /// The file it was read from: the configuration's `model:` or the last `load_model`'s
+    /// path, as the daemon resolved it.
+    pub file: String,
+    /// What it holds.
+    pub kind: ModelKind,
+    /// The joints (1…6) it gives a spring.
+    pub springs: Vec<u8>,
+    /// The joints (1…6) whose friction it holds (`pa10 identify`).
+    pub friction: Vec<u8>,
+    /// The effects `pa10 discover` added, `name[Jn]`.
+    pub discovered: Vec<String>,
+    /// When it came into force, s on the daemon's clock (as `time_s`).
+    pub since_s: f64,
+}
+
+/// A refused request (`status.last_refusal`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct RefusalStatus {
+    /// The request's `cmd` (empty when the line was not a request).
+    pub request: String,
+    /// The refusal's words, as the client read them.
+    pub error: String,
+    /// When, s on the daemon's clock (as `time_s`).
+    pub time_s: f64,
 }
 
 /// What an accepted request answers.

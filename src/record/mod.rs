@@ -237,6 +237,21 @@ pub struct RecordingStatus {
 }
 
 impl RecorderStats {
+    /// Waits (polling every 10 ms) until the writer has closed the last file, at most
+    /// `limit`; whether it has.
+    pub fn wait_finished(&self, limit: Duration) -> bool {
+        let end = std::time::Instant::now() + limit;
+        loop {
+            if self.finished.load(Ordering::SeqCst) {
+                return true;
+            }
+            if std::time::Instant::now() >= end {
+                return false;
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
     /// A snapshot for `status`.
     pub fn status(&self, active: bool) -> RecordingStatus {
         RecordingStatus {

@@ -441,6 +441,22 @@ pub fn diagnostics(status: &Status, now: Time) -> DiagnosticArray {
         ("controller errors", l.controller_errors.to_string()),
         ("speed scaling", status.speed_scaling.to_string()),
         ("leased", status.leased.to_string()),
+        (
+            "model",
+            status
+                .model
+                .as_ref()
+                .map(|m| format!("{} {}", m.kind.name(), m.file))
+                .unwrap_or_default(),
+        ),
+        (
+            "last refusal",
+            status
+                .last_refusal
+                .as_ref()
+                .map(|r| format!("{} at {:.1} s: {}", r.request, r.time_s, r.error))
+                .unwrap_or_default(),
+        ),
     ]
     .into_iter()
     .map(|(k, v)| KeyValue {

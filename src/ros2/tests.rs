@@ -271,6 +271,8 @@ fn status(state: State, fault: Option<&str>, jitter_us: [f64; 3]) -> Status {
         stream_end: None,
         leased: false,
         recording: None,
+        model: None,
+        last_refusal: None,
     }
 }
 

@@ -7,7 +7,7 @@
 use std::fmt::Write as _;
 
 use nalgebra::{Quaternion, UnitQuaternion};
-use pa10::daemon::wire::Status;
+use pa10::daemon::wire::{ModelStatus, Status};
 use pa10::model::JointLimits;
 
 /// The full view: several lines, each ending in a newline. `limits` (rad) gives each joint's
@@ -51,6 +51,23 @@ pub fn render(s: &Status, limits: &JointLimits) -> String {
         c[1],
         c[2]
     );
+    if let Some(m) = &s.model {
+        let _ = writeln!(out, "model  {}", model_words(m));
+    }
+    if let Some(r) = &s.last_refusal {
+        let _ = writeln!(
+            out,
+            "refused {} at t = {:.1} s ({:.1} s ago): {}",
+            if r.request.is_empty() {
+                "a malformed line"
+            } else {
+                &r.request
+            },
+            r.time_s,
+            (s.time_s - r.time_s).max(0.0),
+            r.error
+        );
+    }
     let _ = writeln!(
         out,
         "joint   link [°]   motor [°]   to limit [°]   torque [N·m]   current [A]   motor − link [mrad]"
@@ -91,6 +108,28 @@ pub fn render(s: &Status, limits: &JointLimits) -> String {
     out
 }
 
+/// The model in force in words: its kind, what it holds, its file and since when.
+pub fn model_words(m: &ModelStatus) -> String {
+    let joints = |js: &[u8]| {
+        js.iter()
+            .map(|j| format!("J{j}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let mut words = m.kind.name().to_owned();
+    if !m.springs.is_empty() {
+        let _ = write!(words, " · springs {}", joints(&m.springs));
+    }
+    if !m.friction.is_empty() {
+        let _ = write!(words, " · friction {}", joints(&m.friction));
+    }
+    if !m.discovered.is_empty() {
+        let _ = write!(words, " · discovered {}", m.discovered.join(", "));
+    }
+    let _ = write!(words, " · {} since t = {:.1} s", m.file, m.since_s);
+    words
+}
+
 /// One line of cycle statistics: rate, wake-up jitter p50/p99, compute p99, bus load,
 /// overruns, lock waits.
 pub fn cycle_line(s: &Status) -> String {
@@ -129,7 +168,16 @@ pub fn line(s: &Status) -> String {
             .as_ref()
             .map(|f| format!(" · FAULT {f}"))
             .unwrap_or_default()
-    )
+    ) + &s
+        .last_refusal
+        .as_ref()
+        .map(|r| {
+            format!(
+                " · last refused {} at t {:.2} s: {}",
+                r.request, r.time_s, r.error
+            )
+        })
+        .unwrap_or_default()
 }
 
 /// Roll, pitch, yaw (°) of a unit quaternion `[w, x, y, z]`: rotations about the fixed X, Y,
@@ -158,7 +206,13 @@ mod tests {
             com: None,
         });
         assert!(matches!(r, Reply::Ok(_)), "{r:?}");
-        ls.run_for(0.2);
+        ls.run_for(0.1);
+        // a move beyond J2's limit, refused
+        let r = ls.call(ApiRequest::MoveJoints {
+            q: [0.0, 3.0, 1.5, 0.0, 1.0, 0.0],
+        });
+        assert!(matches!(r, Reply::Refused(_)), "{r:?}");
+        ls.run_for(0.1);
         match ls.call(ApiRequest::Status {}) {
             Reply::Ok(Answer::Status(s)) => *s,
             other => panic!("{other:?}"),
@@ -187,6 +241,27 @@ mod tests {
         assert!(row.contains(&format!("{to:12.1}")), "{row}");
         assert!(v.contains("Hz · jitter p50/p99"), "{v}");
         assert!(!v.contains("e-"), "no raw floats: {v}");
+        // the model in force, and the refusal in the daemon's words
+        let m = s.model.as_ref().expect("status.model");
+        assert_eq!(m.kind, pa10::daemon::wire::ModelKind::Nominal, "{m:?}");
+        assert!(m.file.ends_with("model-nominal.yaml"), "{m:?}");
+        assert!(
+            v.contains(&format!("model  nominal · {} since t = 0.0 s", m.file)),
+            "{v}"
+        );
+        let r = s.last_refusal.as_ref().expect("status.last_refusal");
+        let refused = v
+            .lines()
+            .find(|l| l.starts_with("refused"))
+            .expect("a refusal line");
+        assert!(
+            refused.starts_with("refused move_joints at t = "),
+            "{refused}"
+        );
+        assert!(
+            refused.ends_with(&r.error) && r.error.contains("joint 2"),
+            "{refused}"
+        );
         // the piped line: state, tool and joints on one line
         let l = line(&s);
         assert!(

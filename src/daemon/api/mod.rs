@@ -15,7 +15,7 @@ use super::control::{Stream, Tolerances};
 use super::core::{ClientId, Command, LOCAL, PlanBasis};
 use super::plan::{Move, MoveError, TrajectoryPoint, cartesian_waypoints};
 use super::runtime::{SharedCore, lock};
-use super::wire::{Answer, ApiRequest, Reply};
+use super::wire::{Answer, ApiRequest, RefusalStatus, Reply};
 use crate::model::{Model, frame_from_pose};
 
 pub use client::{CALL_TIMEOUT_S, Client, ClientError, Connection, MAX_REPLY_BYTES, Subscription};
@@ -48,6 +48,10 @@ fn answer(r: Result<Answer, CommandError>) -> Reply {
 pub fn parse(line: &str) -> Result<ApiRequest, Reply> {
     serde_json::from_str(line).map_err(|e| err(format!("bad request: {e}")))
 }
+
+/// How long `record_stop` waits for the writer to close the file before answering, s (within
+/// [`REQUEST_TIMEOUT_S`]).
+pub const RECORD_CLOSE_S: f64 = 5.0;
 
 /// The largest model file `load_model` reads, bytes.
 pub const MAX_MODEL_BYTES: u64 = 1 << 20;
@@ -142,8 +146,34 @@ pub fn status_reply(core: &SharedCore) -> Reply {
     Reply::Ok(Answer::Status(Box::new(c.status())))
 }
 
-/// As [`handle`], for the connection `client` (the motion lease is per connection).
+/// As [`handle`], for the connection `client` (the motion lease is per connection). A
+/// refusal is kept as `status.last_refusal`.
 pub fn handle_from(core: &SharedCore, req: ApiRequest, client: ClientId) -> Reply {
+    let cmd = req.name();
+    let reply = reply_to(core, req, client);
+    note_refusal(core, cmd, &reply);
+    reply
+}
+
+/// Keeps `reply` as the core's last refusal when it is one (not a status poll refused while
+/// the daemon starts: that is not news).
+fn note_refusal(core: &SharedCore, cmd: &str, reply: &Reply) {
+    if let Reply::Refused(error) = reply
+        && cmd != "status"
+        && cmd != "subscribe"
+    {
+        // built outside the lock
+        let refusal = RefusalStatus {
+            request: cmd.to_owned(),
+            error: error.clone(),
+            time_s: 0.0,
+        };
+        lock(core).note_refusal(refusal);
+    }
+}
+
+/// The reply to one request.
+fn reply_to(core: &SharedCore, req: ApiRequest, client: ClientId) -> Reply {
     let submit = |cmd| answer(lock(core).submit_from(client, cmd).map(|()| Answer::Done));
     use ApiRequest as Request;
     match req {
@@ -198,7 +228,10 @@ pub fn handle_from(core: &SharedCore, req: ApiRequest, client: ClientId) -> Repl
         Request::LoadModel { path } => {
             let dir = lock(core).model_dir().to_path_buf();
             match read_model(&dir, Path::new(&path)) {
-                Ok(m) => submit(Command::LoadModel(Arc::new(m))),
+                Ok(m) => submit(Command::LoadModel {
+                    model: Arc::new(m),
+                    file: dir.join(&path).display().to_string(),
+                }),
                 Err(e) => err(e),
             }
         }
@@ -312,7 +345,28 @@ pub fn handle_from(core: &SharedCore, req: ApiRequest, client: ClientId) -> Repl
                 Err(e) => err(e),
             }
         }
-        Request::RecordStop {} => submit(Command::RecordStop),
+        Request::RecordStop {} => {
+            let stopped = {
+                let mut c = lock(core);
+                let stats = c.recording_stats();
+                c.submit_from(client, Command::RecordStop).map(|()| stats)
+            };
+            match stopped {
+                // answered once the file is whole (its summary written), so that a reader
+                // started next finds it closed; outside the lock
+                Ok(stats) => {
+                    if let Some(s) = stats
+                        && !s.wait_finished(std::time::Duration::from_secs_f64(RECORD_CLOSE_S))
+                    {
+                        return err(format!(
+                            "recording stopped, but its file is not closed after {RECORD_CLOSE_S} s (status.recording)"
+                        ));
+                    }
+                    Reply::Ok(Answer::Done)
+                }
+                Err(e) => err(e),
+            }
+        }
         Request::Acquire {} => submit(Command::Acquire),
         Request::Release {} => submit(Command::Release),
     }

@@ -256,7 +256,11 @@ async fn connection(conn: tokio::net::UnixStream, core: Arc<SharedCore>, id: Cli
                 };
                 (cmd, resp)
             }
-            Err(refusal) => (ApiRequest::name_in(line), refusal),
+            Err(refusal) => {
+                let cmd = ApiRequest::name_in(line);
+                note_refusal(&core, cmd, &refusal);
+                (cmd, refusal)
+            }
         };
         let span = tracing::info_span!("request", cmd = %cmd);
         span.in_scope(|| match &resp {

@@ -48,7 +48,12 @@ pub enum Command {
     /// A new tool transform (flange → tool): compensation and Cartesian commands use it.
     SetTool(Box<crate::model::Frame>),
     /// Replace the model between moves (parsed by the caller).
-    LoadModel(Arc<Model>),
+    LoadModel {
+        /// The model.
+        model: Arc<Model>,
+        /// The file it was read from, for `status.model`.
+        file: String,
+    },
     /// Bring the arm to rest, stop the servo and close the link.
     Shutdown,
     /// Follow a timed trajectory from the current setpoint (replacing what runs).
@@ -87,7 +92,7 @@ impl Command {
             Command::Reset => "reset",
             Command::SetPayload { .. } => "set_payload",
             Command::SetTool(_) => "set_tool",
-            Command::LoadModel(_) => "load_model",
+            Command::LoadModel { .. } => "load_model",
             Command::Shutdown => "shutdown",
             Command::FollowTrajectory { .. } => "follow_trajectory",
             Command::SetSpeedScaling(_) => "set_speed_scaling",

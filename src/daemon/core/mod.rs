@@ -82,6 +82,10 @@ pub struct Core {
     last_late_us: f64,
     /// The last cycle, as recorded.
     last_sample: Option<CycleSample>,
+    /// The file the model in force came from, and when it came into force (s).
+    model_file: (String, f64),
+    /// The last refused request.
+    last_refusal: Option<crate::daemon::wire::RefusalStatus>,
 }
 
 impl Core {
@@ -122,6 +126,8 @@ impl Core {
             record_cfg: RecordConfig::default(),
             last_late_us: 0.0,
             last_sample: None,
+            model_file: ("(built in)".into(), 0.0),
+            last_refusal: None,
         }
     }
 
@@ -135,6 +141,7 @@ impl Core {
         );
         core.model_dir = settings.api.model_dir.clone();
         core.record_cfg = settings.record.clone();
+        core.model_file = (settings.model_path.display().to_string(), 0.0);
         core
     }
 
@@ -154,6 +161,11 @@ impl Core {
         self.tap.as_ref()?;
         self.log_event("recording", "stopped: the daemon is shutting down");
         self.tap = None;
+        self.recorded.clone()
+    }
+
+    /// The counters of the recording in progress, or of the last one.
+    pub fn recording_stats(&self) -> Option<Arc<RecorderStats>> {
         self.recorded.clone()
     }
 
@@ -360,9 +372,16 @@ impl Core {
     /// the lease commands are accepted.
     pub fn submit_from(&mut self, client: ClientId, cmd: Command) -> Result<(), CommandError> {
         let name = cmd.name();
+        let held = self.lease == Some(client);
         let r = self.apply(client, cmd);
-        if r.is_ok() && !matches!(name, "servo" | "jog") {
-            // (streams at up to the cycle rate would flood the event channel)
+        // streams at up to the cycle rate, and every polling client's goodbye, would flood
+        // the event channel: a disconnection is news when it ends a lease
+        let news = match name {
+            "servo" | "jog" => false,
+            "disconnected" => held,
+            _ => true,
+        };
+        if r.is_ok() && news {
             self.log_event("command", name);
         }
         r
@@ -446,13 +465,14 @@ impl Core {
                     }
                 }
             }
-            Command::LoadModel(m) => match self.ctl.as_mut() {
-                Some(c) => c.load_model(m),
-                None => {
-                    self.model = m;
-                    Ok(())
+            Command::LoadModel { model, file } => {
+                match self.ctl.as_mut() {
+                    Some(c) => c.load_model(model)?,
+                    None => self.model = model,
                 }
-            },
+                self.model_file = (file, now);
+                Ok(())
+            }
             Command::FollowTrajectory {
                 points,
                 tolerances,

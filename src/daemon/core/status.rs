@@ -2,7 +2,8 @@
 //! the [`Status`] snapshot clients read.
 
 use super::*;
-use crate::daemon::wire::State;
+use crate::daemon::wire::{ModelKind, ModelStatus, RefusalStatus, State};
+use crate::model::Model;
 use crate::record::Mode;
 
 impl Core {
@@ -143,6 +144,47 @@ impl Core {
                 .map(str::to_owned),
             leased: self.lease.is_some(),
             recording: self.recorded.as_ref().map(|r| r.status(self.tap.is_some())),
+            model: Some(model_status(
+                self.ctl.as_ref().map_or(&self.model, |c| c.model_arc()),
+                &self.model_file.0,
+                self.model_file.1,
+            )),
+            last_refusal: self.last_refusal.clone(),
         }
+    }
+
+    /// Keeps `refusal` as the last one (`status.last_refusal`), stamped now.
+    pub fn note_refusal(&mut self, mut refusal: RefusalStatus) {
+        refusal.time_s = self.now_s;
+        self.last_refusal = Some(refusal);
+    }
+}
+
+/// What `model` (read from `file`, in force since `since_s`) holds, for `status.model`.
+pub fn model_status(model: &Model, file: &str, since_s: f64) -> ModelStatus {
+    let d = model.data();
+    let joints =
+        |has: &dyn Fn(usize) -> bool| (0..6u8).filter(|&j| has(j.into())).map(|j| j + 1).collect();
+    let kind = if !d.discovered.is_empty() || d.joint_errors.iter().any(Option::is_some) {
+        ModelKind::Extended
+    } else if d.uncertainty.is_some() || d.departures.iter().any(|p| *p != Default::default()) {
+        ModelKind::Calibrated
+    } else {
+        ModelKind::Nominal
+    };
+    ModelStatus {
+        file: file.to_owned(),
+        kind,
+        springs: joints(&|j| d.stiffness[j].is_some()),
+        friction: joints(&|j| d.friction[j].is_some()),
+        discovered: d
+            .discovered
+            .iter()
+            .map(|e| match e.joint {
+                Some(j) => format!("{}[J{j}]", e.name),
+                None => e.name.clone(),
+            })
+            .collect(),
+        since_s,
     }
 }

@@ -99,8 +99,11 @@ fn a_move_planned_before_the_model_changed_is_refused_as_stale() {
         to[0] += 0.1;
         let mv = Move::joints(basis.from, to, &basis.limits).expect("plan");
         // another model arrives between planning and starting
-        c.submit(Command::LoadModel(Arc::new(Model::nominal())))
-            .expect("load while holding");
+        c.submit(Command::LoadModel {
+            model: Arc::new(Model::nominal()),
+            file: "nominal".into(),
+        })
+        .expect("load while holding");
         let stale = Command::Start {
             mv: Box::new(mv.clone()),
             basis,
@@ -122,7 +125,10 @@ fn a_move_planned_before_the_model_changed_is_refused_as_stale() {
         ));
         // a model cannot be swapped under a running move
         assert_eq!(
-            c.submit(Command::LoadModel(Arc::new(Model::nominal()))),
+            c.submit(Command::LoadModel {
+                model: Arc::new(Model::nominal()),
+                file: "nominal".into()
+            }),
             Err(CommandError::ModelDuringMove)
         );
         (mv, to)
@@ -140,4 +146,44 @@ fn a_move_planned_before_the_model_changed_is_refused_as_stale() {
         to,
         "the move ended where it was planned to"
     );
+}
+
+#[test]
+fn the_model_status_says_what_the_model_holds() {
+    use crate::daemon::wire::ModelKind;
+    use crate::model::{EffectRecord, Stiffness};
+    let nominal = Model::nominal();
+    let s = status::model_status(&nominal, "nominal.yaml", 0.0);
+    assert_eq!(s.kind, ModelKind::Nominal);
+    let mut d = nominal.data().clone();
+    d.departures[2].da = 1e-4;
+    d.stiffness[1] = Some(Stiffness {
+        klin: 5e4,
+        kcub: 0.0,
+    });
+    let calibrated = Model::new(d.clone()).unwrap();
+    let s = status::model_status(&calibrated, "cal.yaml", 3.5);
+    assert_eq!(
+        (s.kind, s.springs.as_slice()),
+        (ModelKind::Calibrated, &[2u8][..])
+    );
+    assert_eq!((s.file.as_str(), s.since_s), ("cal.yaml", 3.5));
+    d.discovered.push(EffectRecord {
+        name: "thermal_expansion".into(),
+        joint: None,
+        params: Default::default(),
+        stderr: Default::default(),
+        compensated: false,
+    });
+    d.discovered.push(EffectRecord {
+        name: "gear_ratio_error".into(),
+        joint: Some(3),
+        params: Default::default(),
+        stderr: Default::default(),
+        compensated: true,
+    });
+    let extended = Model::new(d).unwrap();
+    let s = status::model_status(&extended, "ext.yaml", 9.0);
+    assert_eq!(s.kind, ModelKind::Extended);
+    assert_eq!(s.discovered, ["thermal_expansion", "gear_ratio_error[J3]"]);
 }

@@ -134,6 +134,19 @@ fn a_status() -> Status {
         stream_end: Some("servo: no setpoint within servo.deadline_ms; stopped".into()),
         leased: true,
         recording: None,
+        model: Some(ModelStatus {
+            file: "/var/lib/pa10d/models/extended.yaml".into(),
+            kind: ModelKind::Extended,
+            springs: vec![2, 3, 5],
+            friction: vec![1, 2, 3, 4, 5, 6],
+            discovered: vec!["gear_ratio_error[J3]".into()],
+            since_s: 4.0,
+        }),
+        last_refusal: Some(RefusalStatus {
+            request: "move_joints".into(),
+            error: "joint 2 out of range".into(),
+            time_s: 11.0,
+        }),
     }
 }
 
