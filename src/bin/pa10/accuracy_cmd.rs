@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressStyle;
 use nalgebra::{Quaternion, UnitQuaternion};
 use pa10::accuracy::{self, ARCMIN, McConfig, Region};
 
@@ -251,7 +251,7 @@ pub fn accuracy(a: &AccuracyArgs) -> Result<()> {
     let model = a.model.load()?;
     let cfg = config(a)?;
     let total = (cfg.planes.len() * cfg.points) as u64;
-    let bar = ProgressBar::new(total).with_style(
+    let bar = crate::progress::bar(total, "points", a.json).with_style(
         ProgressStyle::with_template(
             "{elapsed_precise} [{bar:40}] {pos}/{len} points ({eta} left)",
         )

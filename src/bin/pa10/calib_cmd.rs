@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
-use indicatif::ProgressBar;
 use pa10::calib::dataset::Dataset;
 use pa10::calib::fit::{CalibOptions, Weighting, row_residual};
 use pa10::calib::report::{self, ByLoad, Report};
@@ -139,7 +138,7 @@ pub fn calibrate(a: &CalibrateArgs) -> Result<()> {
     if let Some(dir) = &a.report {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let bar = ProgressBar::new(opts.starts as u64).with_message("starts");
+    let bar = crate::progress::bar(opts.starts as u64, "starts", a.json);
     let outcome = report::run(&model, &data, lines.as_ref(), val.as_ref(), &opts, &|n| {
         bar.set_position(n as u64)
     })?;

@@ -284,7 +284,7 @@ fn drive<A: Api>(
     let mut load = f64::NAN;
     let (mut out, mut inst) = (Vec::new(), Vec::new());
     let stdin = std::io::stdin();
-    let bar = crate::progress::bar(poses.len() as u64, "poses");
+    let bar = crate::progress::bar(poses.len() as u64, "poses", false);
     for (k, p) in poses.iter().enumerate() {
         bar.set_position(k as u64);
         bar.set_message(format!("pose `{}` at {} N", p.config_id, p.load_n));

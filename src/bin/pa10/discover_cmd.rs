@@ -102,6 +102,7 @@ pub fn run(a: &DiscoverArgs) -> Result<()> {
     }
     let spin = crate::progress::spinner(
         "discovering: every candidate effect refitted and cross-validated",
+        a.json,
     );
     let d = discover(&model, &data, holdout.as_ref(), &opts);
     spin.finish_and_clear();

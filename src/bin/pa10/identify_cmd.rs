@@ -108,7 +108,10 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
             ),
         },
     };
-    let spin = crate::progress::spinner("identifying: sweeping the tour through the daemon");
+    let spin = crate::progress::spinner(
+        "identifying: sweeping the tour through the daemon",
+        a.conn.json,
+    );
     let run = sweep::identify_through(&mut AsSession(api.as_mut()), &model, &kt, &plan, &a.speeds);
     spin.finish_and_clear();
     let run = run?;
@@ -117,8 +120,10 @@ pub fn identify_cmd(a: &IdentifyArgs) -> Result<()> {
         Some(n) => {
             api.hang_weight(n)?;
             set_payload(api.as_mut(), n)?;
-            let spin =
-                crate::progress::spinner("checking the torque constants: the tour again, loaded");
+            let spin = crate::progress::spinner(
+                "checking the torque constants: the tour again, loaded",
+                a.conn.json,
+            );
             let loaded = sweep::gather(&mut AsSession(api.as_mut()), tour, &a.speeds);
             spin.finish_and_clear();
             api.hang_weight(0.0)?;

@@ -137,7 +137,7 @@ const VALIDATION_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
 
 /// `pa10 plan`.
 pub fn run(a: &PlanArgs) -> Result<()> {
-    let spin = crate::progress::spinner("planning: sampling candidate configurations");
+    let spin = crate::progress::spinner("planning: sampling candidate configurations", a.json);
     let r = plan(a, &spin);
     spin.finish_and_clear();
     r
