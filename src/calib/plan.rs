@@ -19,12 +19,18 @@
 //!   independent generator I beats random configurations and D does not (docs/calibration.md).
 //! - **Selection**: greedy forward (each step the candidate with the best criterion after
 //!   adding it), then exchange passes until no swap of a chosen configuration for a candidate
-//!   improves it ([`select`] for D, [`select_by`] for any).
+//!   improves it ([`select_with`] for a [`Criterion`], [`select`] for D): candidates are
+//!   scored only where the criterion's tangent bound says they could win, with the answer of
+//!   scoring them all ([`select_by`], the reference).
 //! - **Prediction**: `Cov(X) = M⁻¹`; at a validation configuration and load the tool's position
 //!   error covariance is `J_p M⁻¹ J_pᵀ` (calibration) plus the resolvers' own `J_q Σ_q J_qᵀ`
 //!   (the floor, which no calibration removes); its expected norm is the predicted mean error.
 
 use nalgebra::{Cholesky, Matrix3, SMatrix, Vector3};
+
+mod kernel;
+mod select;
+pub use select::{Criterion, Design, exchange, greedy_order, select, select_by, select_with};
 
 use crate::model::params::{
     HAYATI_JOINT, IDX_ALPHA, IDX_D, IDX_KCUB, IDX_KLIN, IDX_THETA, PAPER_STIFFNESS, STIFF_JOINTS,
@@ -200,24 +206,6 @@ pub fn log_det(m: &Information) -> f64 {
     }
 }
 
-/// A chosen design.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Design {
-    /// Indices of the chosen candidates, in the order the greedy pass took them.
-    pub chosen: Vec<usize>,
-    /// `log det M` of the design (prior included).
-    pub log_det: f64,
-    /// The criterion's value (`log det M` for D).
-    pub score: f64,
-}
-
-/// Chooses `n` of the candidates' informations (`infos[i]` for candidate i, from
-/// [`information`]) maximising `log det(prior + Σ chosen)`: greedy forward, then exchange
-/// passes (at most `max_passes`) until no swap raises it by more than 1e-9.
-pub fn select(infos: &[Information], n: usize, max_passes: usize) -> Result<Design, PlanError> {
-    select_by(infos, n, max_passes, &log_det)
-}
-
 /// The I-optimality score of information `m` (prior included) for where the arm will work:
 /// minus the mean predicted position variance `trace(W M⁻¹)`, `W` = [`workspace_weight`]
 /// (larger is better; −∞ when `m` is singular).
@@ -249,81 +237,6 @@ pub fn workspace_weight(model: &Model, qs: &[[f64; 6]], loads_n: &[f64]) -> Info
         }
     }
     w / n.max(1) as f64
-}
-
-/// [`select`] with any criterion of the information (larger is better): D is
-/// [`log_det`], I is [`i_score`] with a [`workspace_weight`].
-pub fn select_by(
-    infos: &[Information],
-    n: usize,
-    max_passes: usize,
-    score: &(dyn Fn(&Information) -> f64 + Sync),
-) -> Result<Design, PlanError> {
-    if n == 0 || n > infos.len() {
-        return Err(PlanError::Invalid(format!(
-            "configurations: 1…{} (the candidates), got {n}",
-            infos.len()
-        )));
-    }
-    let base = prior();
-    let mut chosen: Vec<usize> = Vec::with_capacity(n);
-    let mut m = base;
-    for _ in 0..n {
-        let best = best_addition(infos, &m, &chosen, score);
-        chosen.push(best.1);
-        m += infos[best.1];
-    }
-    let mut value = score(&m);
-    for _ in 0..max_passes {
-        let mut improved = false;
-        for k in 0..chosen.len() {
-            let without = m - infos[chosen[k]];
-            let mut best = best_addition(infos, &without, &chosen, score);
-            if best.0 <= value + 1e-9 {
-                best = (value, chosen[k]);
-            }
-            if best.1 != chosen[k] {
-                chosen[k] = best.1;
-                m = without + infos[best.1];
-                value = best.0;
-                improved = true;
-            }
-        }
-        if !improved {
-            break;
-        }
-    }
-    Ok(Design {
-        chosen,
-        log_det: log_det(&m),
-        score: value,
-    })
-}
-
-/// The candidate not in `chosen` whose information added to `m` gives the largest score,
-/// and that value (ties: the lower index; in parallel, deterministic).
-fn best_addition(
-    infos: &[Information],
-    m: &Information,
-    chosen: &[usize],
-    score: &(dyn Fn(&Information) -> f64 + Sync),
-) -> (f64, usize) {
-    use rayon::prelude::*;
-    infos
-        .par_iter()
-        .enumerate()
-        .filter(|(i, _)| !chosen.contains(i))
-        .map(|(i, info)| (score(&(m + info)), i))
-        .reduce(
-            || (f64::NEG_INFINITY, usize::MAX),
-            |a, b| {
-                if b.0 > a.0 || (b.0 == a.0 && b.1 < a.1) {
-                    b
-                } else {
-                    a
-                }
-            },
-        )
 }
 
 /// `log det` of the design made of every information in `infos` (a given pose set).

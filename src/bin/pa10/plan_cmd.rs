@@ -8,8 +8,8 @@ use anyhow::{Context, Result, bail, ensure};
 use clap::Args;
 use pa10::calib::collect::{PoseTarget, poses_csv};
 use pa10::calib::plan::{
-    Information, PlanNoise, check_loads, check_noise, design_log_det, design_model, i_score,
-    information, predicted_error, prior, select, select_by, workspace_weight,
+    Information, PlanNoise, check_loads, check_noise, design_log_det, design_model, exchange,
+    greedy_order, information, predicted_error, prior, workspace_weight,
 };
 use pa10::model::{Frame, Model};
 use pa10::sim::experiment::{grid_poses, random_pose};
@@ -134,6 +134,9 @@ struct Outcome {
 }
 
 const VALIDATION_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
+
+/// The design sizes of the "how many" curve.
+const CURVE_SIZES: [usize; 9] = [4, 6, 8, 10, 12, 16, 20, 27, 36];
 
 /// `pa10 plan`.
 pub fn run(a: &PlanArgs) -> Result<()> {
@@ -309,11 +312,22 @@ fn plan(a: &PlanArgs, spin: &indicatif::ProgressBar) -> Result<()> {
     // I-criterion; the prediction is made at others (every fourth from the second), not chosen
     let work: Vec<[f64; 6]> = cands.iter().step_by(4).take(150).copied().collect();
     let w = workspace_weight(&model, &work, &VALIDATION_LOADS);
-    let i_crit = |m: &Information| i_score(m, &w);
-    let choose = |n: usize, passes: usize| match a.criterion {
-        Criterion::I => select_by(&infos, n, passes, &i_crit),
-        Criterion::D => select(&infos, n, passes),
+    let crit = match a.criterion {
+        Criterion::I => pa10::calib::plan::Criterion::I(&w),
+        Criterion::D => pa10::calib::plan::Criterion::D,
     };
+    // one greedy pass serves the design and every size of the curve (greedy is
+    // prefix-stable); each then has its own exchange passes
+    let sizes: Vec<usize> = CURVE_SIZES
+        .into_iter()
+        .filter(|&n| n <= cands.len())
+        .collect();
+    let order = greedy_order(
+        &infos,
+        sizes.iter().copied().fold(a.configs, usize::max),
+        &crit,
+    )?;
+    let choose = |n: usize, passes: usize| exchange(&infos, &order[..n], passes, &crit);
     spin.set_message(format!(
         "planning: choosing {} of {} candidates (exchange)",
         a.configs,
@@ -372,11 +386,9 @@ fn plan(a: &PlanArgs, spin: &indicatif::ProgressBar) -> Result<()> {
 
     spin.set_message("planning: the how-many curve");
     let mut curve = Vec::new();
-    for n in [4, 6, 8, 10, 12, 16, 20, 27, 36] {
-        if n <= cands.len() {
-            let d = choose(n, 1)?;
-            curve.push((n, figures(&sum(&d.chosen), n)?.predicted_mm));
-        }
+    for n in sizes {
+        let d = choose(n, 1)?;
+        curve.push((n, figures(&sum(&d.chosen), n)?.predicted_mm));
     }
 
     if let Some(p) = &a.plot {
