@@ -19,7 +19,7 @@ use crate::noise::sym_pow as inv_pow;
 use rayon::prelude::*;
 
 use super::effects::Slot;
-use super::forward::{EffectState, Obs, residual};
+use super::forward::{EffectState, NO_TRIG, Obs, Trig, residual, residual_trig};
 use crate::model::{Model, ModelError};
 
 /// One configuration's rows and whitening.
@@ -114,6 +114,27 @@ impl Problem {
 
     fn raw_with(&self, state: &EffectState, geom: &Model) -> Vec<Vector6<f64>> {
         self.obs.iter().map(|o| residual(state, geom, o)).collect()
+    }
+
+    /// [`Problem::raw_with`], and each observation's [`Trig`].
+    fn raw_and_trig(&self, state: &EffectState, geom: &Model) -> (Vec<Vector6<f64>>, Vec<Trig>) {
+        self.obs
+            .iter()
+            .map(|o| {
+                let mut t = NO_TRIG;
+                (residual_trig(state, geom, o, &mut t), t)
+            })
+            .unzip()
+    }
+
+    /// [`Problem::raw_with`] reusing `trig` (from [`Problem::raw_and_trig`] at a nearby
+    /// state) where the joint angles did not move.
+    fn raw_near(&self, state: &EffectState, geom: &Model, trig: &[Trig]) -> Vec<Vector6<f64>> {
+        self.obs
+            .iter()
+            .zip(trig)
+            .map(|(o, t)| residual_trig(state, geom, o, &mut t.clone()))
+            .collect()
     }
 
     /// Precision-weighted mean of `raw` over `rows`, with `p_inv = (Σ D_i⁻¹)⁻¹`.
@@ -273,6 +294,8 @@ pub(crate) struct Linearization {
     pub jraw: Vec<Vec<Vector6<f64>>>,
     /// Whitened Jacobian (all blocks × slots).
     pub jwhite: DMatrix<f64>,
+    /// Each observation's joint angle sines and cosines at the state.
+    trig: Vec<Trig>,
 }
 
 /// Residuals and finite-difference Jacobian of `slots` at `state` (columns in parallel).
@@ -282,9 +305,9 @@ pub(crate) fn linearise(
     slots: &[Slot],
 ) -> Result<Linearization, ModelError> {
     let geom = state.geometry()?;
-    let raw = p.raw_with(state, &geom);
-    let jraw = columns(p, state, &geom, &raw, slots)?;
-    Ok(Linearization::whitened(p, raw, jraw))
+    let (raw, trig) = p.raw_and_trig(state, &geom);
+    let jraw = columns(p, state, &geom, (&raw, &trig), slots)?;
+    Ok(Linearization::whitened(p, raw, jraw, trig))
 }
 
 /// Forward-difference Jacobian columns of `slots` at `state` (whose geometry is `geom` and
@@ -294,7 +317,7 @@ fn columns(
     p: &Problem,
     state: &EffectState,
     geom: &Model,
-    raw: &[Vector6<f64>],
+    (raw, trig): (&[Vector6<f64>], &[Trig]),
     slots: &[Slot],
 ) -> Result<Vec<Vec<Vector6<f64>>>, ModelError> {
     slots
@@ -312,7 +335,7 @@ fn columns(
                 } else {
                     geom.clone()
                 };
-                let r2 = p.raw_with(&s, &g);
+                let r2 = p.raw_near(&s, &g, trig);
                 return Ok(r2
                     .iter()
                     .zip(raw)
@@ -329,7 +352,12 @@ fn columns(
 
 impl Linearization {
     /// Raw residuals and Jacobian columns whitened on `p`'s weights.
-    fn whitened(p: &Problem, raw: Vec<Vector6<f64>>, jraw: Vec<Vec<Vector6<f64>>>) -> Self {
+    fn whitened(
+        p: &Problem,
+        raw: Vec<Vector6<f64>>,
+        jraw: Vec<Vec<Vector6<f64>>>,
+        trig: Vec<Trig>,
+    ) -> Self {
         let mut white = DVector::zeros(p.n_white);
         p.whiten(&raw, white.as_mut_slice());
         let mut jwhite = DMatrix::zeros(p.n_white, jraw.len());
@@ -343,6 +371,7 @@ impl Linearization {
             white,
             jraw,
             jwhite,
+            trig,
         }
     }
 
@@ -350,7 +379,7 @@ impl Linearization {
     /// (another noise model or dispersion): the raw residuals and Jacobian depend on the
     /// state and the observations alone, so nothing is evaluated again.
     pub fn rewhitened(&self, p: &Problem) -> Self {
-        Self::whitened(p, self.raw.clone(), self.jraw.clone())
+        Self::whitened(p, self.raw.clone(), self.jraw.clone(), self.trig.clone())
     }
 
     /// This linearisation (of some slots at `state`) with the columns of `more` slots
@@ -363,8 +392,8 @@ impl Linearization {
     ) -> Result<Self, ModelError> {
         let geom = state.geometry()?;
         let mut jraw = self.jraw.clone();
-        jraw.extend(columns(p, state, &geom, &self.raw, more)?);
-        Ok(Self::whitened(p, self.raw.clone(), jraw))
+        jraw.extend(columns(p, state, &geom, (&self.raw, &self.trig), more)?);
+        Ok(Self::whitened(p, self.raw.clone(), jraw, self.trig.clone()))
     }
 }
 

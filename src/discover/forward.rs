@@ -269,11 +269,32 @@ pub fn link_angles(s: &EffectState, obs: &Obs) -> [f64; 6] {
     })
 }
 
+/// Each joint's DH angle with its sine and cosine (`[angle, sin, cos]`) at one observation:
+/// what a prediction computed, kept so that the next one at the same angles (a
+/// finite-difference step of a parameter that moves no joint) reuses it, bit for bit.
+pub type Trig = [[f64; 3]; 6];
+
+/// A [`Trig`] that matches no angle.
+pub const NO_TRIG: Trig = [[f64::NAN; 3]; 6];
+
 /// The predicted target pose in the robot base frame. `geom` must be
 /// [`EffectState::geometry`] of `s`.
 pub fn predict(s: &EffectState, geom: &Model, obs: &Obs) -> Frame {
+    predict_trig(s, geom, obs, &mut NO_TRIG.clone())
+}
+
+/// [`predict`], reusing the sines and cosines of `trig` where a joint's DH angle is the one it
+/// holds (to the bit) and leaving there the ones used.
+pub fn predict_trig(s: &EffectState, geom: &Model, obs: &Obs, trig: &mut Trig) -> Frame {
     let q = link_angles(s, obs);
-    let f = geom.frames(&q);
+    for (j, t) in trig.iter_mut().enumerate() {
+        let x = geom.dh_angle(j, q[j]);
+        if x.to_bits() != t[0].to_bits() {
+            let (sn, c) = x.sin_cos();
+            *t = [x, sn, c];
+        }
+    }
+    let f = geom.frames_trig(trig);
     let off = Translation3::new(s.tool_offset[0], s.tool_offset[1], s.tool_offset[2]);
     let x = f[6] * Frame::from_parts(off, Rotation3::identity()) * *geom.tool();
     displace_by_load(
@@ -291,7 +312,13 @@ pub fn predict(s: &EffectState, geom: &Model, obs: &Obs) -> Frame {
 /// rad) in the base frame, with `base` = `geom.base_from_instrument()`.
 #[inline]
 pub fn residual(s: &EffectState, geom: &Model, obs: &Obs) -> Vector6<f64> {
-    let pred = predict(s, geom, obs);
+    residual_trig(s, geom, obs, &mut NO_TRIG.clone())
+}
+
+/// [`residual`] through [`predict_trig`].
+#[inline]
+pub fn residual_trig(s: &EffectState, geom: &Model, obs: &Obs, trig: &mut Trig) -> Vector6<f64> {
+    let pred = predict_trig(s, geom, obs, trig);
     let meas = geom.base_from_instrument() * obs.meas;
     pose_error(&pred, &meas)
 }

@@ -85,18 +85,27 @@ impl JointError {
     #[inline]
     pub fn periodic(&self, q: f64) -> f64 {
         let n = self.gear_ratio;
+        // a term whose coefficients are zero adds exactly zero: its sine and cosine (most of
+        // the cost: discovery evaluates every joint's error at every residual) are skipped
+        let zero = |ab: &[f64; 2]| ab[0] == 0.0 && ab[1] == 0.0;
         let mut e = 0.0;
         for h in 0..2 {
             let k = (h + 1) as f64;
-            let (s, c) = (k * q).sin_cos();
-            e += self.output[h][0] * s + self.output[h][1] * c;
-            let (s, c) = (k * n * q).sin_cos();
-            e += self.wave[h][0] * s + self.wave[h][1] * c;
+            if !zero(&self.output[h]) {
+                let (s, c) = (k * q).sin_cos();
+                e += self.output[h][0] * s + self.output[h][1] * c;
+            }
+            if !zero(&self.wave[h]) {
+                let (s, c) = (k * n * q).sin_cos();
+                e += self.wave[h][0] * s + self.wave[h][1] * c;
+            }
         }
-        let (s, c) = q.sin_cos();
-        e + self.eccentricity[0] * s
-            + self.eccentricity[1] * c
-            + q * (self.scale + q * (self.polynomial[0] + self.polynomial[1] * q))
+        if !zero(&self.eccentricity) {
+            let (s, c) = q.sin_cos();
+            // (as `e + a·s + b·c`: the sum associates as it always did)
+            e = e + self.eccentricity[0] * s + self.eccentricity[1] * c;
+        }
+        e + q * (self.scale + q * (self.polynomial[0] + self.polynomial[1] * q))
     }
 
     /// The whole offset `q_motor − δ − q_link` (rad) at motor angle `q` after an approach in

@@ -72,6 +72,13 @@ impl JointGeom {
     #[inline]
     pub(crate) fn transform(&self, q: f64) -> Frame {
         let (st, ct) = (q + self.offset).sin_cos();
+        self.transform_trig(st, ct)
+    }
+
+    /// [`JointGeom::transform`] from the sine and cosine of its DH angle (link angle +
+    /// offset), computed elsewhere.
+    #[inline]
+    pub(crate) fn transform_trig(&self, st: f64, ct: f64) -> Frame {
         let (ca, sa) = (self.ca, self.sa);
         // Rz(θ)·Rx(α)
         let mut m = Matrix3::new(ct, -st * ca, st * sa, st, ct * ca, -ct * sa, 0.0, sa, ca);
@@ -99,6 +106,23 @@ impl Model {
             f[j + 1] = f[j] * self.joints[j].transform(q[j]);
         }
         f
+    }
+
+    /// [`Model::frames`] from each joint's DH angle sine and cosine (`trig[j]` = `[angle, sin,
+    /// cos]`, the angle being the link angle plus the joint's offset), computed elsewhere.
+    #[inline]
+    pub(crate) fn frames_trig(&self, trig: &[[f64; 3]; 6]) -> [Frame; 7] {
+        let mut f = [Frame::identity(); 7];
+        for j in 0..6 {
+            f[j + 1] = f[j] * self.joints[j].transform_trig(trig[j][1], trig[j][2]);
+        }
+        f
+    }
+
+    /// The DH angle of joint `j` (0-based) at link angle `q` (rad): `q` plus its offset.
+    #[inline]
+    pub(crate) fn dh_angle(&self, j: usize, q: f64) -> f64 {
+        q + self.joints[j].offset
     }
 
     /// Flange pose in the base frame at link angles `q`.
