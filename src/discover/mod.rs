@@ -36,6 +36,7 @@ pub use report::{Discovery, Evidence, Found, LackOfFit, NoiseReport, Score, Step
 use scoring::*;
 use weights::*;
 
+use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
 
 use nalgebra::{DMatrix, DVector, Vector6};
@@ -536,17 +537,20 @@ pub fn discover(
             for &sl in new_slots.iter().filter(|s| !base_slots.contains(s)) {
                 st2.set(sl, jump.get(sl));
             }
+            // the three fits are independent: run together, judged in order
+            let fits: Vec<Option<(Problem, fit::Fitted)>> = [jump, st2, cur.state.clone()]
+                .into_par_iter()
+                .map(|start| {
+                    let mut pb = prob.clone();
+                    // a fit whose model the model file would refuse (e.g. a joint error's
+                    // slope beyond 0.5: not invertible) is no start at all
+                    let alt = fit::fit_balanced(&mut pb, &start, &new_slots, &pr).ok()?;
+                    alt.state.to_model().ok()?;
+                    Some((pb, alt))
+                })
+                .collect();
             let mut best: Option<(Problem, fit::Fitted)> = None;
-            for start in [jump, st2, cur.state.clone()] {
-                let mut pb = prob.clone();
-                // a fit whose model the model file would refuse (e.g. a joint error's slope
-                // beyond 0.5: not invertible) is no start at all
-                let Ok(alt) = fit::fit_balanced(&mut pb, &start, &new_slots, &pr) else {
-                    continue;
-                };
-                if alt.state.to_model().is_err() {
-                    continue;
-                }
+            for (pb, alt) in fits.into_iter().flatten() {
                 match &mut best {
                     None => best = Some((pb, alt)),
                     Some((pa, refit)) => {
@@ -596,10 +600,12 @@ pub fn discover(
                 }
                 let mut with = without.clone();
                 with.extend(e.slots());
-                let (c_without, g_without) =
-                    refit_heldout(&s2.prob, &cur.state, &without, &prior_of(&without), &lay)?;
-                let (c_with, g_with) =
-                    refit_heldout(&s2.prob, &s2.cur.state, &with, &prior_of(&with), &lay)?;
+                let (r_without, r_with) = rayon::join(
+                    || refit_heldout(&s2.prob, &cur.state, &without, &prior_of(&without), &lay),
+                    || refit_heldout(&s2.prob, &s2.cur.state, &with, &prior_of(&with), &lay),
+                );
+                let (c_without, g_without) = r_without?;
+                let (c_with, g_with) = r_with?;
                 Some((drops(&c_without, &c_with), g_with, g_without))
             };
             Ok((s2, test, alone, g_prev, among))

@@ -279,16 +279,24 @@ pub(super) fn stability(
     rng: &mut Pcg64,
 ) -> Vec<Vec<usize>> {
     use rand::RngExt;
+    use rayon::prelude::*;
     let n = blocks.len();
-    (0..BOOTSTRAP)
+    // the multiplicities drawn in order from `rng`, the resamples' selections in parallel
+    let draws: Vec<Vec<f64>> = (0..BOOTSTRAP)
         .map(|_| {
             let mut mult = vec![0.0; n];
             for _ in 0..n {
                 mult[rng.random_range(0..n)] += 1.0;
             }
+            mult
+        })
+        .collect();
+    draws
+        .par_iter()
+        .map(|mult| {
             let mut a = prior.0.clone();
             let mut g = prior.1.clone();
-            for ((ab, gb), m) in blocks.iter().zip(&mult) {
+            for ((ab, gb), m) in blocks.iter().zip(mult) {
                 if *m > 0.0 {
                     a += ab * *m;
                     g += gb * *m;
