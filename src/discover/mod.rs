@@ -379,7 +379,7 @@ pub fn discover(
                 let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
                 let blocks: Vec<_> = prob
                     .blocks
-                    .iter()
+                    .par_iter()
                     .filter(|b| b.train)
                     .map(|b| {
                         let rows: Vec<usize> =

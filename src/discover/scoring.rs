@@ -343,9 +343,30 @@ impl FoldEqs {
 pub(super) fn fold_eqs(p: &Problem, lin: &Linearization, folds: &[Vec<usize>]) -> FoldEqs {
     let cols: Vec<usize> = (0..lin.jwhite.ncols()).collect();
     let rows = p.white_rows(|b| b.train);
-    let (a_train, g_train) = fit::normal_eq(lin, &rows, &cols);
-    let (a, g) = folds
-        .iter()
+    // the training equations and each fold's, independent: computed together
+    let ((a_train, g_train), (a, g)) = rayon::join(
+        || fit::normal_eq(lin, &rows, &cols),
+        || fold_parts(p, lin, folds, &cols),
+    );
+    FoldEqs {
+        a,
+        g,
+        a_train,
+        g_train,
+    }
+}
+
+/// What each fold takes out of the training normal equations.
+#[allow(clippy::type_complexity)]
+fn fold_parts(
+    p: &Problem,
+    lin: &Linearization,
+    folds: &[Vec<usize>],
+    cols: &[usize],
+) -> (Vec<DMatrix<f64>>, Vec<DVector<f64>>) {
+    use rayon::prelude::*;
+    folds
+        .par_iter()
         .map(|f| {
             let rows: Vec<usize> = f
                 .iter()
@@ -361,16 +382,10 @@ pub(super) fn fold_eqs(p: &Problem, lin: &Linearization, folds: &[Vec<usize>]) -
                     DVector::zeros(cols.len()),
                 )
             } else {
-                fit::normal_eq(lin, &rows, &cols)
+                fit::normal_eq(lin, &rows, cols)
             }
         })
-        .unzip();
-    FoldEqs {
-        a,
-        g,
-        a_train,
-        g_train,
-    }
+        .unzip()
 }
 
 /// Per configuration, how much `after` lowers `before` (the held-out cost drops a paired
