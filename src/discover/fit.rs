@@ -19,7 +19,7 @@ use crate::noise::sym_pow as inv_pow;
 use rayon::prelude::*;
 
 use super::effects::Slot;
-use super::forward::{EffectState, NO_TRIG, Obs, Trig, residual, residual_trig};
+use super::forward::{EffectState, Near, Obs, residual, residual_near};
 use crate::model::{Model, ModelError};
 
 /// One configuration's rows and whitening.
@@ -116,24 +116,30 @@ impl Problem {
         self.obs.iter().map(|o| residual(state, geom, o)).collect()
     }
 
-    /// [`Problem::raw_with`], and each observation's [`Trig`].
-    fn raw_and_trig(&self, state: &EffectState, geom: &Model) -> (Vec<Vector6<f64>>, Vec<Trig>) {
+    /// [`Problem::raw_with`], and what each observation's prediction computed ([`Near`]).
+    fn raw_and_near(&self, state: &EffectState, geom: &Model) -> (Vec<Vector6<f64>>, Vec<Near>) {
         self.obs
             .iter()
             .map(|o| {
-                let mut t = NO_TRIG;
-                (residual_trig(state, geom, o, &mut t), t)
+                let mut n = Near::none();
+                (residual_near(state, geom, o, &mut n, 0), n)
             })
             .unzip()
     }
 
-    /// [`Problem::raw_with`] reusing `trig` (from [`Problem::raw_and_trig`] at a nearby
-    /// state) where the joint angles did not move.
-    fn raw_near(&self, state: &EffectState, geom: &Model, trig: &[Trig]) -> Vec<Vector6<f64>> {
+    /// [`Problem::raw_with`] at a state near the one `near` was computed at (with geometry
+    /// `base`), reusing what did not change.
+    fn raw_near(
+        &self,
+        state: &EffectState,
+        geom: &Model,
+        (near, base): (&[Near], &Model),
+    ) -> Vec<Vector6<f64>> {
+        let same = geom.first_joint_unlike(base);
         self.obs
             .iter()
-            .zip(trig)
-            .map(|(o, t)| residual_trig(state, geom, o, &mut t.clone()))
+            .zip(near)
+            .map(|(o, n)| residual_near(state, geom, o, &mut n.clone(), same))
             .collect()
     }
 
@@ -294,8 +300,8 @@ pub(crate) struct Linearization {
     pub jraw: Vec<Vec<Vector6<f64>>>,
     /// Whitened Jacobian (all blocks × slots).
     pub jwhite: DMatrix<f64>,
-    /// Each observation's joint angle sines and cosines at the state.
-    trig: Vec<Trig>,
+    /// What each observation's prediction computed at the state.
+    near: Vec<Near>,
 }
 
 /// Residuals and finite-difference Jacobian of `slots` at `state` (columns in parallel).
@@ -305,9 +311,9 @@ pub(crate) fn linearise(
     slots: &[Slot],
 ) -> Result<Linearization, ModelError> {
     let geom = state.geometry()?;
-    let (raw, trig) = p.raw_and_trig(state, &geom);
-    let jraw = columns(p, state, &geom, (&raw, &trig), slots)?;
-    Ok(Linearization::whitened(p, raw, jraw, trig))
+    let (raw, near) = p.raw_and_near(state, &geom);
+    let jraw = columns(p, state, &geom, (&raw, &near), slots)?;
+    Ok(Linearization::whitened(p, raw, jraw, near))
 }
 
 /// Forward-difference Jacobian columns of `slots` at `state` (whose geometry is `geom` and
@@ -317,7 +323,7 @@ fn columns(
     p: &Problem,
     state: &EffectState,
     geom: &Model,
-    (raw, trig): (&[Vector6<f64>], &[Trig]),
+    (raw, near): (&[Vector6<f64>], &[Near]),
     slots: &[Slot],
 ) -> Result<Vec<Vec<Vector6<f64>>>, ModelError> {
     slots
@@ -335,7 +341,7 @@ fn columns(
                 } else {
                     geom.clone()
                 };
-                let r2 = p.raw_near(&s, &g, trig);
+                let r2 = p.raw_near(&s, &g, (near, geom));
                 return Ok(r2
                     .iter()
                     .zip(raw)
@@ -356,7 +362,7 @@ impl Linearization {
         p: &Problem,
         raw: Vec<Vector6<f64>>,
         jraw: Vec<Vec<Vector6<f64>>>,
-        trig: Vec<Trig>,
+        near: Vec<Near>,
     ) -> Self {
         let mut white = DVector::zeros(p.n_white);
         p.whiten(&raw, white.as_mut_slice());
@@ -371,7 +377,7 @@ impl Linearization {
             white,
             jraw,
             jwhite,
-            trig,
+            near,
         }
     }
 
@@ -379,7 +385,7 @@ impl Linearization {
     /// (another noise model or dispersion): the raw residuals and Jacobian depend on the
     /// state and the observations alone, so nothing is evaluated again.
     pub fn rewhitened(&self, p: &Problem) -> Self {
-        Self::whitened(p, self.raw.clone(), self.jraw.clone(), self.trig.clone())
+        Self::whitened(p, self.raw.clone(), self.jraw.clone(), self.near.clone())
     }
 
     /// This linearisation (of some slots at `state`) with the columns of `more` slots
@@ -392,8 +398,8 @@ impl Linearization {
     ) -> Result<Self, ModelError> {
         let geom = state.geometry()?;
         let mut jraw = self.jraw.clone();
-        jraw.extend(columns(p, state, &geom, (&self.raw, &self.trig), more)?);
-        Ok(Self::whitened(p, self.raw.clone(), jraw, self.trig.clone()))
+        jraw.extend(columns(p, state, &geom, (&self.raw, &self.near), more)?);
+        Ok(Self::whitened(p, self.raw.clone(), jraw, self.near.clone()))
     }
 }
 

@@ -269,37 +269,59 @@ pub fn link_angles(s: &EffectState, obs: &Obs) -> [f64; 6] {
     })
 }
 
-/// Each joint's DH angle with its sine and cosine (`[angle, sin, cos]`) at one observation:
-/// what a prediction computed, kept so that the next one at the same angles (a
-/// finite-difference step of a parameter that moves no joint) reuses it, bit for bit.
-pub type Trig = [[f64; 3]; 6];
+/// What one prediction computed along the chain, kept so that the next one at a nearby
+/// state (a finite-difference step) reuses what did not change, bit for bit: each joint's DH
+/// angle with its sine and cosine (`[angle, sin, cos]`), and the DH frames.
+#[derive(Debug, Clone, Copy)]
+pub struct Near {
+    trig: [[f64; 3]; 6],
+    frames: [Frame; 7],
+}
 
-/// A [`Trig`] that matches no angle.
-pub const NO_TRIG: Trig = [[f64::NAN; 3]; 6];
+impl Near {
+    /// One that matches no angle.
+    pub fn none() -> Self {
+        Self {
+            trig: [[f64::NAN; 3]; 6],
+            frames: [Frame::identity(); 7],
+        }
+    }
+}
 
 /// The predicted target pose in the robot base frame. `geom` must be
 /// [`EffectState::geometry`] of `s`.
 pub fn predict(s: &EffectState, geom: &Model, obs: &Obs) -> Frame {
-    predict_trig(s, geom, obs, &mut NO_TRIG.clone())
+    predict_near(s, geom, obs, &mut Near::none(), 0)
 }
 
-/// [`predict`], reusing the sines and cosines of `trig` where a joint's DH angle is the one it
-/// holds (to the bit) and leaving there the ones used.
-pub fn predict_trig(s: &EffectState, geom: &Model, obs: &Obs, trig: &mut Trig) -> Frame {
+/// [`predict`] from `near` (what a prediction of this observation computed at a state whose
+/// joints before `same` had this geometry): an angle's sine and cosine are reused where the
+/// angle is the one it holds, the frames up to the first joint whose geometry or angle
+/// differs; `near` is left holding this prediction's.
+pub fn predict_near(
+    s: &EffectState,
+    geom: &Model,
+    obs: &Obs,
+    near: &mut Near,
+    same: usize,
+) -> Frame {
     let q = link_angles(s, obs);
-    for (j, t) in trig.iter_mut().enumerate() {
+    let mut from = same;
+    for (j, t) in near.trig.iter_mut().enumerate() {
         let x = geom.dh_angle(j, q[j]);
         if x.to_bits() != t[0].to_bits() {
             let (sn, c) = x.sin_cos();
             *t = [x, sn, c];
+            from = from.min(j);
         }
     }
-    let f = geom.frames_trig(trig);
+    geom.frames_trig_from(&near.trig, &mut near.frames, from);
+    let f = &near.frames;
     let off = Translation3::new(s.tool_offset[0], s.tool_offset[1], s.tool_offset[2]);
     let x = f[6] * Frame::from_parts(off, Rotation3::identity()) * *geom.tool();
     displace_by_load(
         geom,
-        &f,
+        f,
         x,
         obs.load_n,
         &s.load_effects(),
@@ -312,13 +334,19 @@ pub fn predict_trig(s: &EffectState, geom: &Model, obs: &Obs, trig: &mut Trig) -
 /// rad) in the base frame, with `base` = `geom.base_from_instrument()`.
 #[inline]
 pub fn residual(s: &EffectState, geom: &Model, obs: &Obs) -> Vector6<f64> {
-    residual_trig(s, geom, obs, &mut NO_TRIG.clone())
+    residual_near(s, geom, obs, &mut Near::none(), 0)
 }
 
-/// [`residual`] through [`predict_trig`].
+/// [`residual`] through [`predict_near`].
 #[inline]
-pub fn residual_trig(s: &EffectState, geom: &Model, obs: &Obs, trig: &mut Trig) -> Vector6<f64> {
-    let pred = predict_trig(s, geom, obs, trig);
+pub fn residual_near(
+    s: &EffectState,
+    geom: &Model,
+    obs: &Obs,
+    near: &mut Near,
+    same: usize,
+) -> Vector6<f64> {
+    let pred = predict_near(s, geom, obs, near, same);
     let meas = geom.base_from_instrument() * obs.meas;
     pose_error(&pred, &meas)
 }

@@ -109,14 +109,28 @@ impl Model {
     }
 
     /// [`Model::frames`] from each joint's DH angle sine and cosine (`trig[j]` = `[angle, sin,
-    /// cos]`, the angle being the link angle plus the joint's offset), computed elsewhere.
+    /// cos]`, the angle being the link angle plus the joint's offset), computed elsewhere,
+    /// into `f`, whose frames `0..=from` are kept as they are (already this model's at these
+    /// angles: `f[0]` is the identity).
     #[inline]
-    pub(crate) fn frames_trig(&self, trig: &[[f64; 3]; 6]) -> [Frame; 7] {
-        let mut f = [Frame::identity(); 7];
-        for j in 0..6 {
+    pub(crate) fn frames_trig_from(&self, trig: &[[f64; 3]; 6], f: &mut [Frame; 7], from: usize) {
+        for j in from..6 {
             f[j + 1] = f[j] * self.joints[j].transform_trig(trig[j][1], trig[j][2]);
         }
-        f
+    }
+
+    /// The first joint (0-based; 6 for none) whose geometry differs from `other`'s, to the
+    /// bit: frames before it are the same at the same angles.
+    pub(crate) fn first_joint_unlike(&self, other: &Model) -> usize {
+        let bits = |g: &super::robot::JointGeom| {
+            [g.a, g.d, g.offset, g.ca, g.sa, g.cb, g.sb].map(f64::to_bits)
+        };
+        (0..6)
+            .find(|&j| {
+                self.joints[j].hayati != other.joints[j].hayati
+                    || bits(&self.joints[j]) != bits(&other.joints[j])
+            })
+            .unwrap_or(6)
     }
 
     /// The DH angle of joint `j` (0-based) at link angle `q` (rad): `q` plus its offset.
