@@ -144,14 +144,14 @@ pub fn trajectory(a: &TrajectoryArgs) -> Result<()> {
         match t.state {
             TrajectoryState::Executing => std::thread::sleep(Duration::from_millis(20)),
             TrajectoryState::Succeeded => {
-                println!("trajectory {id} succeeded; error [rad] {:?}", t.error);
+                println!("trajectory {id} succeeded; final error {}", mrad(&t.error));
                 return Ok(());
             }
             state => bail!(
-                "trajectory {id} {}: {} (error [rad] {:?}; fault {})",
+                "trajectory {id} {}: {} (error {}; fault {})",
                 serde_json::to_string(&state)?,
                 serde_json::to_string(&t.result)?,
-                t.error,
+                mrad(&t.error),
                 st.fault.as_deref().unwrap_or("none")
             ),
         }
@@ -238,4 +238,10 @@ pub fn jog(a: &JogArgs) -> Result<()> {
         a.joint, a.speed, a.seconds
     );
     Ok(())
+}
+
+/// Joint errors (rad) as `J1..J6 [mrad] +0.084 +0.053 …`.
+fn mrad(e: &[f64; 6]) -> String {
+    let v: Vec<String> = e.iter().map(|x| format!("{:+.3}", x * 1e3)).collect();
+    format!("J1..J6 [mrad] {}", v.join(" "))
 }
