@@ -141,6 +141,65 @@ fn better(a: (f64, usize), b: (f64, usize)) -> (f64, usize) {
     }
 }
 
+/// Greedy forward selection of `n` candidates: each step `best(m, chosen)` names the one to
+/// add to the information `m` so far (prior included).
+fn greedy(
+    infos: &[Information],
+    n: usize,
+    mut best: impl FnMut(&Information, &[usize]) -> (f64, usize),
+) -> Vec<usize> {
+    let mut chosen: Vec<usize> = Vec::with_capacity(n);
+    let mut m = prior();
+    for _ in 0..n {
+        let b = best(&m, &chosen);
+        chosen.push(b.1);
+        m += infos[b.1];
+    }
+    chosen
+}
+
+/// Exchange passes (at most `max_passes`) from `chosen`, scored by `score`: each chosen
+/// candidate `chosen[k]` in turn is swapped for the one `best(design, without, chosen, k,
+/// floor)` names in its place (`without` the design less it; only an answer above `floor`, the
+/// design's score plus 1e-9, can swap), until no swap raises the score by more than 1e-9.
+fn exchange_by(
+    infos: &[Information],
+    mut chosen: Vec<usize>,
+    max_passes: usize,
+    score: impl Fn(&Information) -> f64,
+    mut best: impl FnMut(&Information, &Information, &[usize], usize, f64) -> (f64, usize),
+) -> Design {
+    let mut m = prior();
+    for &i in &chosen {
+        m += infos[i];
+    }
+    let mut value = score(&m);
+    for _ in 0..max_passes {
+        let mut improved = false;
+        for k in 0..chosen.len() {
+            let without = m - infos[chosen[k]];
+            let mut b = best(&m, &without, &chosen, k, value + 1e-9);
+            if b.0 <= value + 1e-9 {
+                b = (value, chosen[k]);
+            }
+            if b.1 != chosen[k] {
+                chosen[k] = b.1;
+                m = without + infos[b.1];
+                value = b.0;
+                improved = true;
+            }
+        }
+        if !improved {
+            break;
+        }
+    }
+    Design {
+        chosen,
+        log_det: log_det(&m),
+        score: value,
+    }
+}
+
 /// The candidates greedy forward selection takes, in order, up to `n` (each step the one that
 /// scores best added to the prior and those before it).
 pub fn greedy_order(
@@ -150,15 +209,13 @@ pub fn greedy_order(
 ) -> Result<Vec<usize>, PlanError> {
     check_size(infos, n)?;
     let kernel = crit.kernel();
-    let mut chosen: Vec<usize> = Vec::with_capacity(n);
-    let mut m = prior();
-    for _ in 0..n {
-        let best = best_addition(infos, &m, &chosen, (crit, &kernel), f64::NEG_INFINITY, None);
-        chosen.push(best.1);
-        m += infos[best.1];
-    }
-    Ok(chosen)
+    Ok(greedy(infos, n, |m, chosen| {
+        best_addition(infos, m, chosen, (crit, &kernel), f64::NEG_INFINITY, None)
+    }))
 }
+
+/// The criterion at a design and `⟨∇f, Aᵢ⟩` there for every candidate i.
+type DesignTangent = (f64, Vec<f64>);
 
 /// Exchange passes (at most `max_passes`) from the design `start`: each chosen candidate in
 /// turn is swapped for the one that scores best in its place, until no swap raises the score
@@ -171,54 +228,29 @@ pub fn exchange(
 ) -> Result<Design, PlanError> {
     check_size(infos, start.len())?;
     let kernel = crit.kernel();
-    let mut chosen = start.to_vec();
-    let mut m = prior();
-    for &i in &chosen {
-        m += infos[i];
-    }
-    let mut value = kernel.score(&m, &Information::zeros());
-    // the tangent at the design: f(M − Aₖ + Aᵢ) ≤ f(M) + ⟨∇f(M), Aᵢ − Aₖ⟩ (kept until a swap)
-    let tangent_at = |m: &Information| {
-        crit.tangent(m)
-            .map(|(f, g)| (f, infos.par_iter().map(|a| dot(&g, a)).collect::<Vec<_>>()))
-    };
-    let mut at_design = tangent_at(&m);
-    for _ in 0..max_passes {
-        let mut improved = false;
-        for k in 0..chosen.len() {
-            let without = m - infos[chosen[k]];
+    // the tangent at the design, f(M − Aₖ + Aᵢ) ≤ f(M) + ⟨∇f(M), Aᵢ − Aₖ⟩, with ⟨∇f(M), Aᵢ⟩
+    // per candidate: computed again only when a swap changed the design
+    let mut at_design: Option<(Information, Option<DesignTangent>)> = None;
+    Ok(exchange_by(
+        infos,
+        start.to_vec(),
+        max_passes,
+        |m| kernel.score(m, &Information::zeros()),
+        |m, without, chosen, k, floor| {
+            if at_design.as_ref().is_none_or(|(at, _)| at != m) {
+                let t = crit
+                    .tangent(m)
+                    .map(|(f, g)| (f, infos.par_iter().map(|a| dot(&g, a)).collect::<Vec<_>>()));
+                at_design = Some((*m, t));
+            }
             let extra = at_design
                 .as_ref()
+                .and_then(|(_, t)| t.as_ref())
                 .map(|(f, d)| (f - d[chosen[k]], d.as_slice()));
-            // a swap must beat the design by more than 1e-9: nothing below that is scored
-            let mut best = best_addition(
-                infos,
-                &without,
-                &chosen,
-                (crit, &kernel),
-                value + 1e-9,
-                extra,
-            );
-            if best.0 <= value + 1e-9 {
-                best = (value, chosen[k]);
-            }
-            if best.1 != chosen[k] {
-                chosen[k] = best.1;
-                m = without + infos[best.1];
-                value = best.0;
-                improved = true;
-                at_design = tangent_at(&m);
-            }
-        }
-        if !improved {
-            break;
-        }
-    }
-    Ok(Design {
-        chosen,
-        log_det: log_det(&m),
-        score: value,
-    })
+            // nothing at or below `floor` can swap: it is not scored
+            best_addition(infos, without, chosen, (crit, &kernel), floor, extra)
+        },
+    ))
 }
 
 /// Chooses `n` of the candidates' informations (`infos[i]` for candidate i, from
@@ -259,38 +291,16 @@ pub fn select_by(
     score: &(dyn Fn(&Information) -> f64 + Sync),
 ) -> Result<Design, PlanError> {
     check_size(infos, n)?;
-    let mut chosen: Vec<usize> = Vec::with_capacity(n);
-    let mut m = prior();
-    for _ in 0..n {
-        let best = best_addition_naive(infos, &m, &chosen, score);
-        chosen.push(best.1);
-        m += infos[best.1];
-    }
-    let mut value = score(&m);
-    for _ in 0..max_passes {
-        let mut improved = false;
-        for k in 0..chosen.len() {
-            let without = m - infos[chosen[k]];
-            let mut best = best_addition_naive(infos, &without, &chosen, score);
-            if best.0 <= value + 1e-9 {
-                best = (value, chosen[k]);
-            }
-            if best.1 != chosen[k] {
-                chosen[k] = best.1;
-                m = without + infos[best.1];
-                value = best.0;
-                improved = true;
-            }
-        }
-        if !improved {
-            break;
-        }
-    }
-    Ok(Design {
-        chosen,
-        log_det: log_det(&m),
-        score: value,
-    })
+    let start = greedy(infos, n, |m, chosen| {
+        best_addition_naive(infos, m, chosen, score)
+    });
+    Ok(exchange_by(
+        infos,
+        start,
+        max_passes,
+        score,
+        |_, without, chosen, _, _| best_addition_naive(infos, without, chosen, score),
+    ))
 }
 
 /// Every candidate not in `chosen` scored added to `m`: the best and its score (ties: the
