@@ -31,6 +31,7 @@
 //! `tests/mujoco/study.py` runs it over seeds and friction behaviours.
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
@@ -285,7 +286,16 @@ struct Outcome {
     validation_poses: usize,
     simulated_s: f64,
     elapsed_s: f64,
+    /// Settles (after every move and load change) that ended with the daemon in position,
+    /// and all settles: the rest hit the 5 s limit.
+    settles_in_position: [usize; 2],
 }
+
+/// [`settle`]'s count: settles that ended in position, and all.
+static SETTLES: [std::sync::atomic::AtomicUsize; 2] = [
+    std::sync::atomic::AtomicUsize::new(0),
+    std::sync::atomic::AtomicUsize::new(0),
+];
 
 /// What `--identify` found and how close its gravity model came to MuJoCo's.
 #[derive(Debug, Serialize)]
@@ -514,7 +524,9 @@ fn move_settle(ls: &mut Lockstep, req: ApiRequest) -> Result<f64> {
     settle(ls)
 }
 
-/// Runs until neither a resolver (by more than 1.5 counts) nor a MuJoCo link (by more than
+/// Runs until the daemon says the arm is in position (`status.in_position`: a sticking drive
+/// can be winding up to break away, hundreds of µrad from its target, while every resolver is
+/// still) and neither a resolver (by more than 1.5 counts) nor a MuJoCo link (by more than
 /// 10 µrad) moves over 10 ms three times running, 0.1…5 s: the springs ring after a move or a
 /// load change, and a link can ring while the motors are held still — the instrument waits
 /// for the tool to stop, as a lab's does. Returns the time it took, s.
@@ -535,11 +547,15 @@ fn settle(ls: &mut Lockstep) -> Result<f64> {
         trace_row(ls, "still", ls.now() - t, &now.0, &now.1, &st);
         let step =
             |a: &[f64; 6], b: &[f64; 6]| (0..6).map(|j| (a[j] - b[j]).abs()).fold(0.0, f64::max);
-        let quiet = step(&now.0, &last.0) <= 1.5 * COUNT && step(&now.1, &last.1) <= LINK_STILL;
+        let quiet = st.in_position
+            && step(&now.0, &last.0) <= 1.5 * COUNT
+            && step(&now.1, &last.1) <= LINK_STILL;
         still = if quiet { still + 1 } else { 0 };
         last = now;
         let waited = ls.now() - t;
         if (waited >= 0.1 && still >= 3) || waited >= 5.0 {
+            SETTLES[0].fetch_add(usize::from(st.in_position), Ordering::Relaxed);
+            SETTLES[1].fetch_add(1, Ordering::Relaxed);
             return Ok(waited);
         }
     }
@@ -887,6 +903,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         validation_poses: targets.len(),
         simulated_s: ls.now(),
         elapsed_s: t0.elapsed().as_secs_f64(),
+        settles_in_position: SETTLES.each_ref().map(|c| c.load(Ordering::Relaxed)),
     })
 }
 
@@ -1183,6 +1200,10 @@ fn print(o: &Outcome) {
         o.validation_poses,
         o.simulated_s,
         o.elapsed_s
+    );
+    println!(
+        "{} of {} settles ended in position (the rest at the 5 s limit).",
+        o.settles_in_position[0], o.settles_in_position[1]
     );
     println!(
         "\n| load [N] | nominal mean / peak [mm] | calibrated mean / peak [mm] | MC floor [mm] |"

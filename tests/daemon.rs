@@ -874,7 +874,7 @@ fn the_daemon_binary_serves_its_socket_and_stops_on_sigterm() {
     ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(
-        String::from_utf8_lossy(&o.stdout).starts_with("pa10d holding · "),
+        String::from_utf8_lossy(&o.stdout).starts_with("pa10d holding, in position · "),
         "{}",
         String::from_utf8_lossy(&o.stdout)
     );

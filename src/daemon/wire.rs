@@ -332,6 +332,11 @@ pub struct Status {
     /// The last request the daemon refused (any client), in its words.
     #[serde(default)]
     pub last_refusal: Option<RefusalStatus>,
+    /// In position: holding, every motor still and within its holding band of the
+    /// compensated target (`control.hold_deadband`, widened where a sticking drive hunted;
+    /// docs/daemon.md). What a client waits for before it measures.
+    #[serde(default)]
+    pub in_position: bool,
 }
 
 /// What a model holds, from its contents.

@@ -441,6 +441,7 @@ pub fn diagnostics(status: &Status, now: Time) -> DiagnosticArray {
         ("controller errors", l.controller_errors.to_string()),
         ("speed scaling", status.speed_scaling.to_string()),
         ("leased", status.leased.to_string()),
+        ("in position", status.in_position.to_string()),
         (
             "model",
             status

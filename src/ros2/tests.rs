@@ -273,6 +273,7 @@ fn status(state: State, fault: Option<&str>, jitter_us: [f64; 3]) -> Status {
         recording: None,
         model: None,
         last_refusal: None,
+        in_position: true,
     }
 }
 

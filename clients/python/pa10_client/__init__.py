@@ -121,22 +121,42 @@ class Client:
                 raise Pa10Error(f"not holding within {timeout_s} s (state {st['state']})")
             time.sleep(poll_s)
 
+    def wait_in_position(self, timeout_s: float = 5.0, poll_s: float = 0.01) -> Json:
+        """Waits until the arm holds *in position* (``status.in_position``: every motor still
+        and within its holding band of its target; docs/daemon.md) — what to wait for before
+        measuring: a sticking drive can wind up for seconds after the setpoint stopped. A fault,
+        or not in position within ``timeout_s``, raises :class:`Pa10Error`."""
+        end = time.monotonic() + timeout_s
+        while True:
+            st = self.status()
+            if st["state"] == "holding" and st.get("in_position"):
+                return st
+            if st["state"] == "fault":
+                raise Pa10Error(f"fault: {st['fault']}")
+            if time.monotonic() > end:
+                raise Pa10Error(f"not in position within {timeout_s} s (state {st['state']})")
+            time.sleep(poll_s)
+
     # -- moves ---------------------------------------------------------------------------
 
     def move_joints(self, q: Sequence[float], wait: bool = False) -> float:
-        """A joint move to link angles ``q`` (rad); its duration, s."""
+        """A joint move to link angles ``q`` (rad); its duration, s. With ``wait``, returns
+        when the arm holds in position (:meth:`wait_in_position`)."""
         d = float(self.call({"cmd": "move_joints", "q": _six("q", q)})["duration_s"])
         if wait:
             self.wait_holding(d + 10.0)
+            self.wait_in_position()
         return d
 
     def move_pose(self, position: Sequence[float], quaternion: Sequence[float], wait: bool = False) -> float:
-        """A straight-line tool move (base frame, m, unit quaternion w, x, y, z); its duration, s."""
+        """A straight-line tool move (base frame, m, unit quaternion w, x, y, z); its duration, s.
+        With ``wait``, returns when the arm holds in position (:meth:`wait_in_position`)."""
         d = float(
             self.call({"cmd": "move_pose", "position": list(position), "quaternion": list(quaternion)})["duration_s"]
         )
         if wait:
             self.wait_holding(d + 10.0)
+            self.wait_in_position()
         return d
 
     def follow_trajectory(

@@ -80,7 +80,9 @@ def main(sock: str) -> None:
         home = st["setpoint"]
         # moves, with the daemon's own words on a refusal
         arm.move_joints([0.1, 0.45, 1.55, 0.0, 1.1, -0.1], wait=True)
-        assert abs(arm.status()["setpoint"][0] - 0.1) < 1e-9
+        st = arm.status()
+        assert abs(st["setpoint"][0] - 0.1) < 1e-9
+        assert st["in_position"] is True, st
         expect_refusal(lambda: arm.move_joints([0.0, 2.5, 0.0, 0.0, 0.0, 0.0]), "joint 2")
         # a trajectory back home, followed to the end
         t = arm.follow_trajectory(

@@ -187,14 +187,19 @@ pub fn status(c: &Conn) -> Result<()> {
     print_status(c, &s)
 }
 
-/// Polls `status` until the arm holds; returns that status. A fault, or no rest within
-/// `timeout`, is an error.
+/// How long [`wait_settled`] waits, once the daemon holds, for the motors to be in position
+/// (`status.in_position`), s: a sticking drive winds up for seconds before it breaks away.
+pub const IN_POSITION_WAIT_S: f64 = 5.0;
+
+/// Polls `status` until the arm holds and then until it is in position (at most
+/// [`IN_POSITION_WAIT_S`] more; said on stderr when it is not); returns that status. A fault,
+/// or no rest within `timeout`, is an error.
 pub fn wait_settled(api: &mut dyn Api, timeout: Duration) -> Result<Status> {
     let end = api.clock_s() + timeout.as_secs_f64();
     loop {
         let s = status_of(api)?;
         match s.state {
-            State::Holding => return Ok(s),
+            State::Holding => return wait_in_position(api, s),
             State::Fault => bail!(
                 "the move ended in a fault: {}",
                 s.fault.as_deref().unwrap_or("(no fault text)")
@@ -205,6 +210,22 @@ pub fn wait_settled(api: &mut dyn Api, timeout: Duration) -> Result<Status> {
             _ => api.pause(Duration::from_millis(10)),
         }
     }
+}
+
+/// From a holding status `s`: polls until in position, a state other than holding, or
+/// [`IN_POSITION_WAIT_S`]; the last status.
+fn wait_in_position(api: &mut dyn Api, mut s: Status) -> Result<Status> {
+    let end = api.clock_s() + IN_POSITION_WAIT_S;
+    while !s.in_position && s.state == State::Holding && api.clock_s() < end {
+        api.pause(Duration::from_millis(10));
+        s = status_of(api)?;
+    }
+    if !s.in_position && s.state == State::Holding {
+        eprintln!(
+            "warning: holding but not in position after {IN_POSITION_WAIT_S} s (a motor still moving or outside its holding band: docs/daemon.md)"
+        );
+    }
+    Ok(s)
 }
 
 /// `pa10 move …`.

@@ -16,8 +16,9 @@ pub fn render(s: &Status, limits: &JointLimits) -> String {
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "pa10d {} · servo {} · motion lease {} · speed scaling {:.0} % · t = {:.1} s",
+        "pa10d {}{} · servo {} · motion lease {} · speed scaling {:.0} % · t = {:.1} s",
         s.state,
+        if s.in_position { ", in position" } else { "" },
         s.servo.as_deref().unwrap_or("unknown"),
         if s.leased { "held" } else { "free" },
         100.0 * s.speed_scaling,
@@ -224,7 +225,8 @@ mod tests {
         let s = status();
         let limits = *pa10::model::Model::nominal().limits();
         let v = render(&s, &limits);
-        assert!(v.starts_with("pa10d holding · servo "), "{v}");
+        assert!(s.in_position, "{s:?}");
+        assert!(v.starts_with("pa10d holding, in position · servo "), "{v}");
         let p = s.tool_position.map(|x| x * 1e3);
         assert!(v.contains(&format!("x {:+9.3}", p[0])), "{v}");
         assert!(v.contains("load   45.0 N (4.59 kg)"), "{v}");

@@ -189,8 +189,8 @@ impl Controller {
     }
 
     /// Step 5: the position loop on the motor side, `speed = q̇_setpoint + K·(target − q_motor)`
-    /// clamped to the speed limits (rad/s); holding, an error within `hold_deadband` counts
-    /// as zero and `hold_damping` × the resolvers' motor speed is taken off (a drive breaking
+    /// clamped to the speed limits (rad/s); holding, an error within the joint's holding band
+    /// (`hold_deadband`, widened by the hunting guard: `hold.rs`) counts as zero and `hold_damping` × the resolvers' motor speed is taken off (a drive breaking
     /// away from sticking is braked at once instead of slipping past the target). After the following-error and joint-limit checks
     /// (the link angle estimated as the measured motor angle less the compensation). Returns
     /// the speeds and those link angles (rad).
@@ -229,7 +229,7 @@ impl Controller {
                     value: link[j],
                 });
             }
-            let e = if holding && e.abs() < self.p.hold_deadband {
+            let e = if holding && e.abs() <= self.hold.band(j) {
                 0.0
             } else {
                 e
@@ -426,6 +426,8 @@ mod tests {
         let mut target = Q0;
         target[1] += 1.5e-5; // within the band
         target[2] += 3e-5; // outside: gain 20 → 6e-4 rad/s
+        c.hold
+            .update(PERIOD, true, 2e-5, &target, &s.q_motor, &[0.0; 6], |_| 0.0);
         let (speeds, _) = c.position_loop(&s, &target).expect("within limits");
         assert_eq!(speeds[1], 0.0);
         assert!((speeds[2] - 6e-4).abs() < 1e-12);
@@ -564,5 +566,100 @@ mod tests {
             biggest <= 2.0 * change.abs() * PERIOD / GLIDE_S * 1.001,
             "{biggest}"
         );
+    }
+
+    /// A sticking drive on J6 (MuJoCo's `stick` plant's in one joint, link-side units): a PI
+    /// speed loop, static friction 1.6 × Coulomb, rotor 0.02 kg·m². Its slip after breakaway
+    /// (≈ 0.6·Fc / Ki ≈ 3 mrad) is far wider than twice a 0.1 mrad band.
+    struct StickyJ6 {
+        q: f64,
+        w: f64,
+        integral: f64,
+        stuck: bool,
+    }
+
+    impl StickyJ6 {
+        const KP: f64 = 8.0;
+        const KI: f64 = 160.0;
+        const FC: f64 = 1.8;
+        const FS: f64 = 1.6 * 1.8;
+        const J: f64 = 0.02;
+        const B: f64 = 0.3;
+
+        fn advance(&mut self, speed: f64, dt: f64) {
+            let h = dt / 20.0;
+            for _ in 0..20 {
+                let err = speed - self.w;
+                self.integral += err * h;
+                let tau = Self::KP * err + Self::KI * self.integral;
+                if self.stuck {
+                    if tau.abs() <= Self::FS {
+                        continue;
+                    }
+                    self.stuck = false;
+                }
+                let dir = if self.w != 0.0 {
+                    self.w.signum()
+                } else {
+                    tau.signum()
+                };
+                let w = self.w + h * (tau - Self::FC * dir - Self::B * self.w) / Self::J;
+                if w * self.w < 0.0 || (self.w == 0.0 && w * dir < 0.0) {
+                    self.w = 0.0;
+                    self.stuck = tau.abs() <= Self::FS;
+                } else {
+                    self.w = w;
+                }
+                self.q += h * self.w;
+            }
+        }
+    }
+
+    #[test]
+    fn a_sticking_drive_that_hunts_its_band_is_accepted_where_it_sticks_and_in_position() {
+        let mut p = params();
+        p.hold_deadband = 1e-4;
+        p.hold_damping = 1.0;
+        let mut c = Controller::new(Model::nominal(), p, &state(Q0, [0.0; 6], 0.0));
+        let target = Q0[5];
+        let mut drive = StickyJ6 {
+            q: target + 7.8e-4,
+            w: 0.0,
+            integral: 0.0,
+            stuck: true,
+        };
+        let (mut sides, mut last_side, mut in_position_at) = (0, 0.0, None);
+        // after first in position: the farthest the drive moved (rad), cycles out of position
+        let (mut moved, mut lost) = (0.0f64, 0);
+        for k in 1..=10_000 {
+            let t = k as f64 * PERIOD;
+            let mut q = Q0;
+            q[5] = drive.q;
+            let speeds = c.step(t, Some(&state(q, [0.0; 6], t)));
+            let e = c.output().target[5] - drive.q;
+            if e.abs() > 1e-4 && e.signum() != last_side {
+                sides += 1;
+                last_side = e.signum();
+            }
+            match in_position_at {
+                None if c.in_position() => in_position_at = Some((t, drive.q)),
+                None => {}
+                Some((_, q)) => {
+                    moved = moved.max((drive.q - q).abs());
+                    lost += usize::from(!c.in_position());
+                }
+            }
+            drive.advance(speeds[5], PERIOD);
+        }
+        // it hunted (crossed its band at least once) and then stayed where it was accepted
+        assert!(sides >= 2, "the drive never crossed its band: {sides}");
+        let (t, q) = in_position_at.expect("in position within 20 s");
+        // a breakaway slips millradians; coming to rest, a few µrad
+        assert!(
+            moved < 2e-5 && lost == 0,
+            "after {t} s: moved {moved} rad, out of position {lost} cycles"
+        );
+        let e = (c.output().target[5] - q).abs();
+        assert!(e > 1e-4 && e <= 1e-3, "accepted {e} rad from the target");
     }
 }

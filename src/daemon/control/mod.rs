@@ -38,6 +38,7 @@ pub use params::*;
 mod cycle;
 pub mod estimate;
 mod glide;
+pub mod hold;
 mod params;
 mod stream;
 
@@ -75,6 +76,8 @@ pub struct Controller {
     out: CycleOutput,
     /// Step 4c: a newly loaded model's target reached smoothly.
     glide: glide::Glide,
+    /// Step 5's holding band and in-position state (`hold.rs`).
+    hold: hold::HoldBand,
 }
 
 /// What one cycle computed (for recordings): torques used, motor target, speeds sent.
@@ -123,6 +126,7 @@ impl Controller {
                 ..CycleOutput::default()
             },
             glide: glide::Glide::default(),
+            hold: hold::HoldBand::default(),
         }
     }
 
@@ -364,6 +368,20 @@ impl Controller {
             Ok(t) => self.glide.apply(&t, &self.out.target, self.p.period_s),
             Err(f) => return self.fault(f),
         };
+        let (model, setpoint) = (&self.model, &self.setpoint.q);
+        let mut jacobian = None;
+        self.hold.update(
+            self.p.period_s,
+            matches!(self.activity, Activity::Holding),
+            self.p.hold_deadband,
+            &target,
+            &state.q_motor,
+            &self.motor_speed,
+            |j| {
+                let jac = jacobian.get_or_insert_with(|| model.jacobian(setpoint));
+                jac.fixed_view::<3, 1>(0, j).norm()
+            },
+        );
         let (speeds, link) = match self.position_loop(&state, &target) {
             Ok(v) => v,
             Err(f) => return self.fault(f),
@@ -375,6 +393,12 @@ impl Controller {
         };
         self.track(&link, now_s);
         speeds
+    }
+
+    /// Whether the arm is in position: holding, every motor still and within its holding
+    /// band of the compensated target ([`hold`]).
+    pub fn in_position(&self) -> bool {
+        self.hold.in_position()
     }
 
     /// What the last cycle computed.

@@ -150,6 +150,8 @@ impl Core {
                 self.model_file.1,
             )),
             last_refusal: self.last_refusal.clone(),
+            in_position: state == State::Holding
+                && self.ctl.as_ref().is_some_and(|c| c.in_position()),
         }
     }
 

@@ -147,6 +147,7 @@ fn a_status() -> Status {
             error: "joint 2 out of range".into(),
             time_s: 11.0,
         }),
+        in_position: true,
     }
 }
 
