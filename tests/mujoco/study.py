@@ -27,9 +27,10 @@ RUN_TIMEOUT_S = 1800
 HERE = os.path.dirname(os.path.abspath(__file__))
 # On creeping drives an extended model's mean error may exceed the calibrated one's by this
 # fraction of the floor before the check calls it worse: one model validated twice differs by up
-# to 0.12x the floor at a load. On sticking drives (a stuck drive rests up to 0.5 mrad from its
-# target) the comparison is reported, not checked: docs/judge.md §9 has the extended model worse
-# at 0 N on 3 of 8 seeds there. The judge's --check uses the same rule.
+# to 0.12x the floor at a load. On sticking drives (a stuck drive rests anywhere in its holding
+# band; one model validated twice differs by up to 0.18x) the comparison is reported, not
+# checked: docs/judge.md §9 has the extended model worse by 0.22-0.28x at 0 N on 2 of 7 named
+# seeds there. The judge's --check uses the same rule.
 EXTENDED_SLACK = 0.15
 
 
