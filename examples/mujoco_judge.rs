@@ -564,7 +564,7 @@ fn settle(ls: &mut Lockstep) -> Result<f64> {
 
 /// `--trace`'s file: one CSV row per 10 ms of every move and settle ([`TRACE_HEADER`]), and
 /// a row naming each load change.
-const TRACE_HEADER: &str = "phase,t_s,motor1..6_rad,link1..6_rad (MuJoCo),setpoint1..6_rad,target1..6_rad (the daemon's motor target)";
+const TRACE_HEADER: &str = "phase,t_s,motor1..6_rad,link1..6_rad (MuJoCo),setpoint1..6_rad,target1..6_rad (the daemon's motor target),tau1..6_nm (the torques the compensation used)";
 
 static TRACE: std::sync::Mutex<Option<std::io::BufWriter<std::fs::File>>> =
     std::sync::Mutex::new(None);
@@ -582,6 +582,7 @@ fn trace_row(ls: &Lockstep, phase: &str, t: f64, motor: &[f64; 6], link: &[f64; 
         .chain(link.iter().copied())
         .chain(st.setpoint.iter().copied())
         .chain(target.iter().copied())
+        .chain(st.tau.iter().copied())
         .map(|v| format!("{v:.9}"))
         .collect();
     let _ = writeln!(w, "{phase},{}", cells.join(","));
