@@ -16,7 +16,7 @@ import json
 import os
 import socket
 import time
-from typing import Any, Dict, Iterator, List, Optional, Sequence
+from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence
 
 __all__ = ["Client", "Pa10Error", "TrajectoryPoint", "DEFAULT_SOCKET"]
 
@@ -108,34 +108,35 @@ class Client:
                 raise Pa10Error(str(answer.get("error")), {"cmd": "subscribe"})
             yield answer["status"]
 
-    def wait_holding(self, timeout_s: float = 30.0, poll_s: float = 0.01) -> Json:
-        """Waits until the arm holds; a fault or the timeout raises :class:`Pa10Error`."""
+    def _wait(self, done: Callable[[Json], bool], what: str, timeout_s: float, poll_s: float) -> Json:
+        """Polls ``status`` until ``done`` says so; a fault, or ``timeout_s`` passing, raises
+        :class:`Pa10Error` (``"<what> within <timeout_s> s"``)."""
         end = time.monotonic() + timeout_s
         while True:
             st = self.status()
-            if st["state"] == "holding":
+            if done(st):
                 return st
             if st["state"] == "fault":
                 raise Pa10Error(f"fault: {st['fault']}")
             if time.monotonic() > end:
-                raise Pa10Error(f"not holding within {timeout_s} s (state {st['state']})")
+                raise Pa10Error(f"{what} within {timeout_s} s (state {st['state']})")
             time.sleep(poll_s)
+
+    def wait_holding(self, timeout_s: float = 30.0, poll_s: float = 0.01) -> Json:
+        """Waits until the arm holds; a fault or the timeout raises :class:`Pa10Error`."""
+        return self._wait(lambda st: st["state"] == "holding", "not holding", timeout_s, poll_s)
 
     def wait_in_position(self, timeout_s: float = 5.0, poll_s: float = 0.01) -> Json:
         """Waits until the arm holds *in position* (``status.in_position``: every motor still
         and within its holding band of its target; docs/daemon.md) — what to wait for before
         measuring: a sticking drive can wind up for seconds after the setpoint stopped. A fault,
         or not in position within ``timeout_s``, raises :class:`Pa10Error`."""
-        end = time.monotonic() + timeout_s
-        while True:
-            st = self.status()
-            if st["state"] == "holding" and st.get("in_position"):
-                return st
-            if st["state"] == "fault":
-                raise Pa10Error(f"fault: {st['fault']}")
-            if time.monotonic() > end:
-                raise Pa10Error(f"not in position within {timeout_s} s (state {st['state']})")
-            time.sleep(poll_s)
+        return self._wait(
+            lambda st: st["state"] == "holding" and bool(st.get("in_position")),
+            "not in position",
+            timeout_s,
+            poll_s,
+        )
 
     # -- moves ---------------------------------------------------------------------------
 

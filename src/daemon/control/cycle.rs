@@ -190,10 +190,11 @@ impl Controller {
 
     /// Step 5: the position loop on the motor side, `speed = q̇_setpoint + K·(target − q_motor)`
     /// clamped to the speed limits (rad/s); holding, an error within the joint's holding band
-    /// (`hold_deadband`, widened by the hunting guard: `hold.rs`) counts as zero and `hold_damping` × the resolvers' motor speed is taken off (a drive breaking
-    /// away from sticking is braked at once instead of slipping past the target). After the following-error and joint-limit checks
-    /// (the link angle estimated as the measured motor angle less the compensation). Returns
-    /// the speeds and those link angles (rad).
+    /// (`hold_deadband`, widened by the hunting guard: `hold.rs`) counts as zero and
+    /// `hold_damping` × the resolvers' motor speed is taken off (a drive breaking away from
+    /// sticking is braked at once instead of slipping past the target). After the
+    /// following-error and joint-limit checks (the link angle estimated as the measured motor
+    /// angle less the compensation). Returns the speeds and those link angles (rad).
     pub(super) fn position_loop(
         &self,
         state: &JointState,

@@ -12,9 +12,9 @@
 //! stuck, and no nearer its target than [`HUNT_PROGRESS`] × where it rested before its last
 //! crossing, is accepted where it stuck — its band widens to its error, at most
 //! [`HUNT_BAND_MAX`] × the deadband, and only where that error moves the tool point by at
-//! most [`HUNT_TOOL_M`] — until its target moves again. **In position**: holding, every motor still and within its
-//! band (at least [`IN_POSITION_RAD`]) of its target; `status.in_position`, what a client
-//! waits for before it measures.
+//! most [`HUNT_TOOL_M`] — until its target moves again. **In position**: holding, every
+//! motor still and within its band (at least [`IN_POSITION_RAD`]) of its target;
+//! `status.in_position`, what a client waits for before it measures.
 
 /// The widest band the hunting guard accepts, as a multiple of `hold_deadband`: a drive
 /// further off keeps being corrected.
