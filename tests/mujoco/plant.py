@@ -217,6 +217,15 @@ def mjcf(truth, tool=(0.0, 0.0, 0.1)):
     return "\n".join(xml)
 
 
+def strided(ix):
+    """A slice that reads the addresses `ix` (a view), or `ix` itself when they are not
+    evenly spaced (a copy on every read)."""
+    step = ix[1] - ix[0]
+    if step > 0 and all(ix[i + 1] - ix[i] == step for i in range(len(ix) - 1)):
+        return slice(int(ix[0]), int(ix[-1]) + 1, int(step))
+    return ix
+
+
 class Plant:
     def __init__(self, seed=1, friction=1.0, tool=(0.0, 0.0, 0.1), friction_model="creep"):
         if friction_model not in FRICTION_MODELS:
@@ -226,12 +235,19 @@ class Plant:
         self.model = mujoco.MjModel.from_xml_string(mjcf(self.truth, tool))
         self.data = mujoco.MjData(self.model)
         m = self.model
-        self.mq = [m.jnt_qposadr[m.joint(f"m{j + 1}").id] for j in range(6)]
-        self.sq = [m.jnt_qposadr[m.joint(f"s{j + 1}").id] for j in range(6)]
-        self.mv = [m.jnt_dofadr[m.joint(f"m{j + 1}").id] for j in range(6)]
-        self.sv = [m.jnt_dofadr[m.joint(f"s{j + 1}").id] for j in range(6)]
+        self.mq = np.array([m.jnt_qposadr[m.joint(f"m{j + 1}").id] for j in range(6)])
+        self.sq = np.array([m.jnt_qposadr[m.joint(f"s{j + 1}").id] for j in range(6)])
+        self.mv = np.array([m.jnt_dofadr[m.joint(f"m{j + 1}").id] for j in range(6)])
+        self.sv = np.array([m.jnt_dofadr[m.joint(f"s{j + 1}").id] for j in range(6)])
+        # reads in every physics step: a view (a slice) where the addresses are evenly spaced,
+        # as they are in this MJCF (m1 s1 m2 s2 …); a copy otherwise
+        self.rmq, self.rsq, self.rmv, self.rsv = (strided(ix) for ix in (self.mq, self.sq, self.mv, self.sv))
+        # the constants of every physics step as arrays once (a step is ~50 µs of Python)
+        self.kp, self.ki = np.array(KP), np.array(KI)
+        self.lim, self.viscous = np.array(TORQUE_LIMIT), np.array(VISCOUS)
         self.k1 = np.array(K1) * self.truth.k_scale
         self.k3 = np.array(K3) * self.truth.k_scale
+        self.cdamp = SPRING_DAMPING * self.k1  # the springs' damping, N·m·s/rad
         self.load = m.body("load").id
         self.tool = m.site("tool").id
         self.set_friction(friction)
@@ -247,6 +263,7 @@ class Plant:
         the damping that keeps a loaded wrist from ringing). With sticking drives the dry part
         is this file's Stribeck model (`dry`), not MuJoCo's `frictionloss`."""
         self.coulomb = np.array(COULOMB) * scale
+        self.fs = STATIC_RATIO * self.coulomb
         for j in range(6):
             self.model.dof_frictionloss[self.mv[j]] = 0.0 if self.sticking else self.coulomb[j]
             self.model.dof_damping[self.mv[j]] = VISCOUS[j]
@@ -255,16 +272,18 @@ class Plant:
         """The torque on each rotor besides its dry friction, N·m (link side): the speed loop's,
         the spring's reaction, minus the viscous drag: J·θ̈ = this + dry friction."""
         d = self.data
-        v, delta, ddelta = d.qvel[self.mv], d.qpos[self.sq], d.qvel[self.sv]
-        return tau + self.spring(delta) + SPRING_DAMPING * self.k1 * ddelta - np.array(VISCOUS) * v
+        v, delta, ddelta = d.qvel[self.rmv], d.qpos[self.rsq], d.qvel[self.rsv]
+        return tau + self.spring(delta) + self.cdamp * ddelta - self.viscous * v
 
     def dry(self, tau):
         """The sticking drives' dry friction this step, N·m; unsticks the drives whose rotor
         torque exceeds the static level (breakaway)."""
         n = self.rotor_torque(tau)
-        fs = STATIC_RATIO * self.coulomb
+        fs = self.fs
         self.stuck &= np.abs(n) <= fs
-        v = self.data.qvel[self.mv]
+        if self.stuck.all():  # at rest (most of a settle): nothing slips
+            return -n
+        v = self.data.qvel[self.rmv]
         stribeck = self.coulomb + (fs - self.coulomb) * np.exp(-((v / STRIBECK_SPEED) ** 2))
         # a drive breaking away starts against its static level, in the direction it is pushed
         slip = np.where(v != 0.0, -np.sign(v) * stribeck, -np.sign(n) * fs)
@@ -274,16 +293,19 @@ class Plant:
         """After a step: a moving drive whose speed crossed zero sticks when its rotor torque
         is within the static level; stuck drives stay pinned."""
         d = self.data
-        v = d.qvel[self.mv]
+        if self.stuck.all():  # nothing moving can stop: only the pins
+            d.qpos[self.rmq] = self.anchor
+            d.qvel[self.rmv] = 0.0
+            return
+        v = d.qvel[self.rmv]
         # a drive that just broke away (its speed was 0) is not stopping
         crossed = (v * v_before <= 0.0) & (v_before != 0.0)
         n = self.rotor_torque(tau)
-        new = ~self.stuck & crossed & (np.abs(n) <= STATIC_RATIO * self.coulomb)
-        self.anchor = np.where(new, d.qpos[self.mq], self.anchor)
+        new = ~self.stuck & crossed & (np.abs(n) <= self.fs)
+        self.anchor = np.where(new, d.qpos[self.rmq], self.anchor)
         self.stuck |= new
-        for j in np.flatnonzero(self.stuck):
-            d.qpos[self.mq[j]] = self.anchor[j]
-            d.qvel[self.mv[j]] = 0.0
+        d.qpos[self.mq[self.stuck]] = self.anchor[self.stuck]
+        d.qvel[self.mv[self.stuck]] = 0.0
 
     def spring(self, delta):
         return self.k1 * delta + self.k3 * delta**3
@@ -311,7 +333,7 @@ class Plant:
         mujoco.mj_forward(self.model, d)
         # the speed loop's integrator holds the spring torque (the motor torque at rest)
         self.tau_m = d.qfrc_bias[self.mv].copy()
-        self.integral = self.tau_m / np.array(KI)
+        self.integral = self.tau_m / self.ki
         self.speed = np.zeros(6)
         self.held = None
         self.stuck[:] = True
@@ -328,7 +350,7 @@ class Plant:
             # brake release: the speed loop starts holding the load the brakes held
             self.held = None
             mujoco.mj_forward(self.model, d)
-            self.integral = d.qfrc_bias[self.mv] / np.array(KI)
+            self.integral = d.qfrc_bias[self.mv] / self.ki
             self.stuck[:] = True
             self.anchor = d.qpos[self.mq].copy()
         for _ in range(n):
@@ -340,17 +362,16 @@ class Plant:
                 d.qvel[self.mv] = 0
                 self.tau_m = -self.spring(d.qpos[self.sq])
                 continue
-            err = self.speed - d.qvel[self.mv]
+            err = self.speed - d.qvel[self.rmv]
             self.integral += err * DT
-            tau = np.array(KP) * err + np.array(KI) * self.integral
-            lim = np.array(TORQUE_LIMIT)
-            tau = np.clip(tau, -lim, lim)
+            tau = self.kp * err + self.ki * self.integral
+            tau = np.clip(tau, -self.lim, self.lim)
             self.tau_m = tau
-            delta = d.qpos[self.sq]
+            delta = d.qpos[self.rsq]
             d.qfrc_applied[:] = 0
             d.qfrc_applied[self.mv] = tau + (self.dry(tau) if self.sticking else 0.0)
             d.qfrc_applied[self.sv] = -self.spring(delta)
-            v_before = d.qvel[self.mv].copy()
+            v_before = d.qvel[self.rmv].copy()
             mujoco.mj_step(self.model, d)
             if self.sticking:
                 self.stick_after(tau, v_before)
