@@ -13,7 +13,9 @@
 #      docs/pa10-fd.dbc (cantools) to the codec's values.
 # Fails loudly with the VM's console. Downloads (the kernel package) are cached in
 # $PA10_VCAN_CACHE (default ~/.cache/pa10-vcan). Needs root for apt-get only when the
-# packages are missing. Usage: tests/vcan/run.sh
+# packages are missing. Usage: tests/vcan/run.sh [--prepare]
+# (--prepare: only the installs and the kernel's download, then exit - CI starts it at the
+# beginning, in the background, so a fresh machine's downloads overlap the builds)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 cache=${PA10_VCAN_CACHE:-$HOME/.cache/pa10-vcan}
@@ -30,7 +32,6 @@ if [ ${#need[@]} -gt 0 ]; then
     echo "vcan: installing ${need[*]}"
     apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${need[@]}" >/dev/null
 fi
-python3 -c "import cantools" 2>/dev/null || python3 -m pip install --quiet --disable-pip-version-check cantools
 
 kpkg=$(apt-cache depends linux-image-amd64 2>/dev/null | awk '/Depends: linux-image-[0-9]/ {print $2; exit}')
 if [ -z "$kpkg" ]; then apt-get update -qq; kpkg=$(apt-cache depends linux-image-amd64 | awk '/Depends: linux-image-[0-9]/ {print $2; exit}'); fi
@@ -39,6 +40,12 @@ if [ -z "$deb" ]; then
     (cd "$cache" && apt-get download "$kpkg" 2>/dev/null)
     deb=$(ls "$cache"/"$kpkg"_*.deb | head -1)
 fi
+if [ "${1:-}" = "--prepare" ]; then
+    echo "vcan: prepared ($kpkg, qemu, busybox, cpio, candump)"
+    exit 0
+fi
+# (not in --prepare: CI's own pip install runs beside it)
+python3 -c "import cantools" 2>/dev/null || python3 -m pip install --quiet --disable-pip-version-check cantools
 dpkg -x "$deb" "$work/k"
 kver=${kpkg#linux-image-}
 mods="$work/k/lib/modules/$kver/kernel"
