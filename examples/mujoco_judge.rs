@@ -43,7 +43,7 @@ use pa10::daemon::config::{Config, Settings};
 use pa10::daemon::core::Core;
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
 use pa10::discover::{DiscoverOptions, Found, discover};
-use pa10::model::{Frame, Model, NOMINAL_YAML, pose_error, pose_parts};
+use pa10::model::{Frame, Model, NOMINAL_YAML, Torques, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
 use pa10::sim::plant::{FrictionModel, MAX_FRICTION_SCALE, PlantConfig, PlantKind};
@@ -221,6 +221,11 @@ struct LoadRow {
     extended_mean_mm: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     extended_peak_mm: Option<f64>,
+    /// Where each model (nominal, calibrated[, extended]) says the tool is at rest — its
+    /// forward model at the resolvers' rest angles and the torques the daemon used — against
+    /// MuJoCo's tool, mean over poses, mm: the model's own error, without where the servo
+    /// stopped (a stuck drive rests anywhere in its band; the placement error above has both).
+    prediction_mean_mm: Vec<f64>,
 }
 
 /// With `--discover`: what `pa10 discover` said on the campaign and the held-out set.
@@ -773,6 +778,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     }
     // errs[model][load]: position errors, mm
     let mut errs = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
+    let mut predicted = errs.clone();
     let mut rest = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
     let mut settle_s = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
     let mut move_settle_s = vec![Vec::new(); named.len()];
@@ -796,6 +802,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                     at_rest.extend(v.rest0);
                     for l in 0..VAL_LOADS.len() {
                         errs[mi][l].push(v.error_mm[l]);
+                        predicted[mi][l].push(v.predicted_mm[l]);
                         rest[mi][l].push(v.rest_mrad[l]);
                         settle_s[mi][l].push(v.settle_s[l]);
                     }
@@ -828,6 +835,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             settle_mean_s: mean(&settle_s[1][l]),
             extended_mean_mm: errs.get(2).map(|e| mean(&e[l])),
             extended_peak_mm: errs.get(2).map(|e| peak(&e[l])),
+            prediction_mean_mm: predicted.iter().map(|p| mean(&p[l])).collect(),
         })
         .collect();
     if let Some(i) = identification.as_mut() {
@@ -1099,6 +1107,8 @@ struct PoseResult {
     setpoint: [f64; 6],
     /// Per load of [`VAL_LOADS`]: position error mm, link − setpoint mrad, settling s.
     error_mm: [f64; 3],
+    /// Per load: |MuJoCo's tool − the model's prediction at the rest angles|, mm.
+    predicted_mm: [f64; 3],
     rest_mrad: [f64; 3],
     settle_s: [f64; 3],
     /// At rest at 0 N: MuJoCo's link angles, rad, and spring torques, N·m (when it says them).
@@ -1139,6 +1149,7 @@ fn validate_pose(
         after_move_s,
         setpoint: status(ls)?.setpoint,
         error_mm: [0.0; 3],
+        predicted_mm: [0.0; 3],
         rest_mrad: [0.0; 3],
         settle_s: [0.0; 3],
         rest0: None,
@@ -1151,6 +1162,10 @@ fn validate_pose(
         r.settle_s[l] = set_load(ls, VAL_LOADS[l])?;
         let got = truth_base.inverse() * ls.servo.true_tool_pose();
         r.error_mm[l] = pose_error(target, &got).fixed_rows::<3>(0).norm() * 1e3;
+        r.predicted_mm[l] = pose_error(&predicted(ls, model, VAL_LOADS[l])?, &got)
+            .fixed_rows::<3>(0)
+            .norm()
+            * 1e3;
         r.rest_mrad[l] = rest_mrad(ls)?;
         if l == 0 {
             let plant = ls.servo.plant();
@@ -1160,6 +1175,18 @@ fn validate_pose(
         }
     }
     Ok(r)
+}
+
+/// Where `model` says the tool is now (instrument frame): its link angles from the resolvers'
+/// angles and the torques the daemon's compensation used (backlash centred), through its
+/// kinematics with `load_n` (N) hung at the tool.
+fn predicted(ls: &Lockstep, model: &Model, load_n: f64) -> Result<Frame> {
+    let st = status(ls)?;
+    let link = model
+        .link_from_motor(&st.q_motor, Torques::Given(&st.tau), &[0.0; 6])
+        .map_err(|e| anyhow!("the model's link angles at rest: {e}"))?
+        .q_link;
+    Ok(model.base_from_instrument().inverse() * model.fk_loaded(&link, load_n))
 }
 
 /// RMS over joints of MuJoCo's link angles − the daemon's setpoint, mrad.
@@ -1252,6 +1279,22 @@ fn print(o: &Outcome) {
                 o.floor_mm
             );
         }
+    }
+    println!(
+        "\nThe models' own error at rest (MuJoCo's tool − the model's tool at the resolvers' rest angles; without where the servo stopped), mean [mm], nominal / calibrated{}:",
+        if o.discovered.is_some() {
+            " / extended"
+        } else {
+            ""
+        }
+    );
+    for l in &o.loads {
+        let v: Vec<String> = l
+            .prediction_mean_mm
+            .iter()
+            .map(|e| format!("{e:.3}"))
+            .collect();
+        println!("  {:.0} N: {}", l.load_n, v.join(" / "));
     }
     println!(
         "\nAt rest, MuJoCo's link − the daemon's setpoint (RMS over joints, mean over poses):"
