@@ -70,7 +70,7 @@ const PERIOD_S: f64 = 0.002;
 /// the floor; the comparison is reported there, not checked (docs/judge.md §9, "Measuring in
 /// position": the extended model worse by 0.22–0.28× at 0 N on 2 of 7 named seeds). The
 /// models' own error at rest (`prediction_mean_mm`: where the servo stopped taken out) is
-/// checked with the same slack on either drive. tests/mujoco/study.py uses the same rules.
+/// checked with the same slack on creeping drives. tests/mujoco/study.py uses the same rules.
 const EXTENDED_SLACK: f64 = 0.15;
 
 struct Opts {
@@ -360,8 +360,8 @@ fn main() -> Result<()> {
 /// calibrated model's mean error within `ratio` × the Monte Carlo floor at every load (1.3 on
 /// the full run, 2 on the quick one: 8 calibration poses, 2 validation poses), the nominal
 /// model three times worse at 90 N, with `--discover` on creeping drives the extended model
-/// not worse than the calibrated one (by more than [`EXTENDED_SLACK`] × the floor) and on any
-/// drives its own error at rest (`prediction_mean_mm`) not worse by as much, tracking
+/// not worse than the calibrated one (by more than [`EXTENDED_SLACK`] × the floor), neither
+/// in placement nor in its own error at rest (`prediction_mean_mm`), tracking
 /// better than nominal, the loaded wrist's ring decaying, and no run ending early.
 fn check(o: &Outcome, ratio: f64) -> Vec<String> {
     let mut bad = Vec::new();
@@ -387,8 +387,14 @@ fn check(o: &Outcome, ratio: f64) -> Vec<String> {
             ));
         }
     }
-    // the models' own error at rest, on either drive: a stuck drive's rest does not enter it
-    for l in &o.loads {
+    // the models' own error at rest, on creeping drives as the placement: on sticking ones the
+    // same model validated twice differs by up to 0.21× the floor at 90 N even there (the
+    // torque estimate at rest depends on how the drive arrived; docs/judge.md §9)
+    for l in o
+        .loads
+        .iter()
+        .filter(|_| o.friction_model == FrictionModel::Creep)
+    {
         if let [_, c, e] = l.prediction_mean_mm[..]
             && e > c + EXTENDED_SLACK * o.floor_mm
         {

@@ -31,9 +31,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 # band; one model validated twice differs by up to 0.18x) the comparison is reported, not
 # checked: docs/judge.md §9 has the extended model worse by 0.22-0.28x at 0 N on 2 of 7 named
 # seeds there. The models' own error at rest (the judge's prediction_mean_mm, where the servo
-# stopped taken out) is checked on both: 12-06, stick seeds 3 and 8, the extended model's is
-# within +0.07x of the calibrated model's where its placement was +0.22 and +0.28x worse.
-# The judge's --check uses the same rules.
+# stopped taken out) is checked on creeping drives too; on sticking ones it is reported: 12-06,
+# stick seeds 3 and 8, the extended model's is within +0.07x of the calibrated model's at 0 N
+# where its placement was +0.22 and +0.28x worse, but the same model validated twice (seed 4)
+# still differs by 0.21x at 90 N. The judge's --check uses the same rules.
 EXTENDED_SLACK = 0.15
 
 
@@ -91,7 +92,8 @@ def problems(r, ratio):
             bad.append(f"{l['load_n']:.0f} N: extended {ext:.3f} mm worse than calibrated "
                        f"{l['calibrated_mean_mm']:.3f} mm")
         own = l.get("prediction_mean_mm", [])
-        if len(own) == 3 and own[2] > own[1] + EXTENDED_SLACK * r["floor_mm"]:
+        if (len(own) == 3 and r["friction_model"] == "creep"
+                and own[2] > own[1] + EXTENDED_SLACK * r["floor_mm"]):
             bad.append(f"{l['load_n']:.0f} N: the extended model's own error at rest {own[2]:.3f} mm "
                        f"worse than the calibrated model's {own[1]:.3f} mm")
     return bad
