@@ -386,15 +386,9 @@ fn check(o: &Outcome, ratio: f64) -> Vec<String> {
                 l.load_n, l.calibrated_mean_mm
             ));
         }
-    }
-    // the models' own error at rest, on creeping drives as the placement: on sticking ones the
-    // same model validated twice differs by up to 0.21× the floor at 90 N even there (the
-    // torque estimate at rest depends on how the drive arrived; docs/judge.md §9)
-    for l in o
-        .loads
-        .iter()
-        .filter(|_| o.friction_model == FrictionModel::Creep)
-    {
+        // and the models' own error at rest, on creeping drives as the placement: on sticking
+        // ones the same model validated twice differs by up to 0.21× the floor at 90 N even
+        // there (the torque estimate at rest depends on how the drive arrived; docs/judge.md §9)
         if let [_, c, e] = l.prediction_mean_mm[..]
             && e > c + EXTENDED_SLACK * o.floor_mm
         {
@@ -1180,12 +1174,11 @@ fn validate_pose(
     for l in order {
         r.settle_s[l] = set_load(ls, VAL_LOADS[l])?;
         let got = truth_base.inverse() * ls.servo.true_tool_pose();
-        r.error_mm[l] = pose_error(target, &got).fixed_rows::<3>(0).norm() * 1e3;
-        r.predicted_mm[l] = pose_error(&predicted(ls, model, VAL_LOADS[l])?, &got)
-            .fixed_rows::<3>(0)
-            .norm()
-            * 1e3;
-        r.rest_mrad[l] = rest_mrad(ls)?;
+        let st = status(ls)?;
+        let position_mm = |a: &Frame| pose_error(a, &got).fixed_rows::<3>(0).norm() * 1e3;
+        r.error_mm[l] = position_mm(target);
+        r.predicted_mm[l] = position_mm(&predicted(&st, model, VAL_LOADS[l])?);
+        r.rest_mrad[l] = rest_mrad(ls, &st);
         if l == 0 {
             let plant = ls.servo.plant();
             r.rest0 = plant
@@ -1198,9 +1191,8 @@ fn validate_pose(
 
 /// Where `model` says the tool is now (instrument frame): its link angles from the resolvers'
 /// angles and the torques the daemon's compensation used (backlash centred), through its
-/// kinematics with `load_n` (N) hung at the tool.
-fn predicted(ls: &Lockstep, model: &Model, load_n: f64) -> Result<Frame> {
-    let st = status(ls)?;
+/// kinematics with `load_n` (N) hung at the tool; `st` the daemon's status at rest.
+fn predicted(st: &Status, model: &Model, load_n: f64) -> Result<Frame> {
     let link = model
         .link_from_motor(&st.q_motor, Torques::Given(&st.tau), &[0.0; 6])
         .map_err(|e| anyhow!("the model's link angles at rest: {e}"))?
@@ -1208,12 +1200,11 @@ fn predicted(ls: &Lockstep, model: &Model, load_n: f64) -> Result<Frame> {
     Ok(model.base_from_instrument().inverse() * model.fk_loaded(&link, load_n))
 }
 
-/// RMS over joints of MuJoCo's link angles − the daemon's setpoint, mrad.
-fn rest_mrad(ls: &Lockstep) -> Result<f64> {
-    let setpoint = status(ls)?.setpoint;
+/// RMS over joints of MuJoCo's link angles − the daemon's setpoint (in `st`), mrad.
+fn rest_mrad(ls: &Lockstep, st: &Status) -> f64 {
     let (link, _) = ls.servo.link_state();
-    let ss: f64 = (0..6).map(|j| (link[j] - setpoint[j]).powi(2)).sum();
-    Ok((ss / 6.0).sqrt() * 1e3)
+    let ss: f64 = (0..6).map(|j| (link[j] - st.setpoint[j]).powi(2)).sum();
+    (ss / 6.0).sqrt() * 1e3
 }
 
 /// The 0.2 Hz sine stream (`examples/common/tracking.rs`) for 4 s at the cycle rate, then

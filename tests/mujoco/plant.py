@@ -293,17 +293,14 @@ class Plant:
         """After a step: a moving drive whose speed crossed zero sticks when its rotor torque
         is within the static level; stuck drives stay pinned."""
         d = self.data
-        if self.stuck.all():  # nothing moving can stop: only the pins
-            d.qpos[self.rmq] = self.anchor
-            d.qvel[self.rmv] = 0.0
-            return
-        v = d.qvel[self.rmv]
-        # a drive that just broke away (its speed was 0) is not stopping
-        crossed = (v * v_before <= 0.0) & (v_before != 0.0)
-        n = self.rotor_torque(tau)
-        new = ~self.stuck & crossed & (np.abs(n) <= self.fs)
-        self.anchor = np.where(new, d.qpos[self.rmq], self.anchor)
-        self.stuck |= new
+        if not self.stuck.all():  # (all stuck, at rest: nothing moving can stop, only the pins)
+            v = d.qvel[self.rmv]
+            # a drive that just broke away (its speed was 0) is not stopping
+            crossed = (v * v_before <= 0.0) & (v_before != 0.0)
+            n = self.rotor_torque(tau)
+            new = ~self.stuck & crossed & (np.abs(n) <= self.fs)
+            self.anchor = np.where(new, d.qpos[self.rmq], self.anchor)
+            self.stuck |= new
         d.qpos[self.mq[self.stuck]] = self.anchor[self.stuck]
         d.qvel[self.mv[self.stuck]] = 0.0
 
