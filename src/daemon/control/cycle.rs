@@ -616,12 +616,29 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_sticking_drive_that_hunts_its_band_is_accepted_where_it_sticks_and_in_position() {
+    /// What [`StickyJ6`] did under the loop for 20 s from 0.78 mrad off its target, stuck.
+    struct StickyRun {
+        /// How often the error crossed from one side of the 0.1 mrad band to the other.
+        sides: usize,
+        /// When the loop first said in position, s, and where J6's motor was, rad.
+        in_position_at: Option<(f64, f64)>,
+        /// After that: the farthest the drive moved (rad) and the cycles out of position.
+        moved: f64,
+        lost: usize,
+        /// |target − motor| where it was accepted, rad.
+        accepted_rad: f64,
+    }
+
+    /// Runs [`StickyJ6`] as the arm's J6 under the loop (deadband 0.1 mrad, damping 1), the
+    /// tool at `tool` (flange frame, m).
+    fn sticky_j6(tool: [f64; 3]) -> StickyRun {
         let mut p = params();
         p.hold_deadband = 1e-4;
         p.hold_damping = 1.0;
-        let mut c = Controller::new(Model::nominal(), p, &state(Q0, [0.0; 6], 0.0));
+        let model = Model::nominal()
+            .with_tool(&crate::model::frame_from_pose(tool, [1.0, 0.0, 0.0, 0.0]))
+            .expect("a tool");
+        let mut c = Controller::new(model, p, &state(Q0, [0.0; 6], 0.0));
         let target = Q0[5];
         let mut drive = StickyJ6 {
             q: target + 7.8e-4,
@@ -630,7 +647,6 @@ mod tests {
             stuck: true,
         };
         let (mut sides, mut last_side, mut in_position_at) = (0, 0.0, None);
-        // after first in position: the farthest the drive moved (rad), cycles out of position
         let (mut moved, mut lost) = (0.0f64, 0);
         for k in 1..=10_000 {
             let t = k as f64 * PERIOD;
@@ -652,15 +668,46 @@ mod tests {
             }
             drive.advance(speeds[5], PERIOD);
         }
+        let accepted_rad =
+            in_position_at.map_or(f64::NAN, |(_, q)| (c.output().target[5] - q).abs());
+        StickyRun {
+            sides,
+            in_position_at,
+            moved,
+            lost,
+            accepted_rad,
+        }
+    }
+
+    #[test]
+    fn a_sticking_drive_that_hunts_its_band_is_accepted_where_it_sticks_and_in_position() {
+        // the tool point 20 mm off J6's axis: 0.78 mrad of J6 moves it 16 µm
+        let r = sticky_j6([0.02, 0.0, 0.1]);
         // it hunted (crossed its band at least once) and then stayed where it was accepted
-        assert!(sides >= 2, "the drive never crossed its band: {sides}");
-        let (t, q) = in_position_at.expect("in position within 20 s");
+        assert!(
+            r.sides >= 2,
+            "the drive never crossed its band: {}",
+            r.sides
+        );
+        let (t, _) = r.in_position_at.expect("in position within 20 s");
         // a breakaway slips millradians; coming to rest, a few µrad
         assert!(
-            moved < 2e-5 && lost == 0,
-            "after {t} s: moved {moved} rad, out of position {lost} cycles"
+            r.moved < 2e-5 && r.lost == 0,
+            "after {t} s: moved {} rad, out of position {} cycles",
+            r.moved,
+            r.lost
         );
-        let e = (c.output().target[5] - q).abs();
+        let e = r.accepted_rad;
         assert!(e > 1e-4 && e <= 1e-3, "accepted {e} rad from the target");
+    }
+
+    #[test]
+    fn a_stuck_wrist_roll_about_the_tool_point_is_accepted_where_it_rests_without_hunting() {
+        // the tool point on J6's axis: J6's error does not move it
+        let r = sticky_j6([0.0, 0.0, 0.35]);
+        let (t, _) = r.in_position_at.expect("in position");
+        assert!(t < 0.1, "in position after {t} s");
+        assert!(r.sides <= 1 && r.moved < 2e-5 && r.lost == 0, "{}", r.sides);
+        assert!((r.accepted_rad - 7.8e-4).abs() < 2e-5, "{}", r.accepted_rad);
     }
 }
