@@ -53,7 +53,10 @@ mods="$work/k/lib/modules/$kver/kernel"
 target=${CARGO_TARGET_DIR:-$root/target}
 # the dev profile (dependencies optimised, ours at opt-level 1): what `cargo test` built already
 echo "vcan: building the binaries"
-(cd "$root" && cargo build --quiet --bin pa10 --bin pa10d)
+# with an example: the build then has the dev-dependencies' features (tokio's test-util, the
+# feature pins in Cargo.toml), the set `cargo test` built, so CI reuses that build instead of
+# compiling tokio, its dependants and the library a second time (the binaries behave the same)
+(cd "$root" && cargo build --quiet --bin pa10 --bin pa10d --example stress)
 
 ird="$work/initrd"
 mkdir -p "$ird"/{bin,sbin,proc,sys,dev,tmp,etc,modules}
