@@ -18,8 +18,9 @@
 //! wind up, break away and slip buys the tool point nothing (MuJoCo's sticking J6 rested
 //! 0.3–1.1 mrad off for the judge's whole 5 s wait in a third of its settles, docs/judge.md).
 //! The guard looks at the tool *point*: an accepted wrist roll is an orientation error of up
-//! to [`HUNT_BAND_MAX`] × the deadband (1 mrad in the shipped configurations). **In position**: holding, every
-//! motor still and within its band (at least [`IN_POSITION_RAD`]) of its target;
+//! to [`HUNT_BAND_MAX`] × the deadband (1 mrad in the shipped configurations); with the wrist
+//! straight (J5 = 0) J4's axis passes through the tool point too. **In position**: holding,
+//! every motor still and within its band (at least [`IN_POSITION_RAD`]) of its target;
 //! `status.in_position`, what a client waits for before it measures.
 
 /// The widest band the hunting guard accepts, as a multiple of `hold_deadband`: a drive
