@@ -218,9 +218,9 @@ impl MujocoPlant {
     fn request(&mut self, req: &serde_json::Value) -> Result<State, MujocoError> {
         // one write of the whole line: `writeln!` on the unbuffered pipe wrote every piece of
         // the JSON apart (≈ 5 writes a request, each waking the plant's reader)
-        let mut line = req.to_string();
-        line.push('\n');
-        self.input.write_all(line.as_bytes())?;
+        let mut request = req.to_string();
+        request.push('\n');
+        self.input.write_all(request.as_bytes())?;
         self.input.flush()?;
         let line = match self.answers.recv_timeout(ANSWER_TIMEOUT) {
             Ok(Ok(line)) => line,
