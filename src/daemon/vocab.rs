@@ -83,8 +83,11 @@ pub enum TorqueSource {
     /// The model's gravity plus the payload, plus a correction learnt only where the currents
     /// are unbiased: a joint moving at constant speed, the model's identified friction
     /// (`pa10 identify`) subtracted; frozen at rest (a sticking drive's held torque is
-    /// unknown) and while accelerating (the rotor's inertia torque). Without identified
-    /// friction it is `model`. See `daemon::control::estimate`.
+    /// unknown) and while accelerating (the rotor's inertia torque). The part of the
+    /// residual odd in the speed (friction the identification missed, seen as the two
+    /// directions' means differing) is left out, so the torque held at rest does not depend on
+    /// the direction of arrival. Without identified friction it is `model`. See
+    /// `daemon::control::estimate`.
     Estimated,
 }
 
