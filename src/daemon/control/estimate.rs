@@ -252,8 +252,8 @@ mod tests {
         let beyond = |qd: f64| 3.0 + (10.0 + 5.0 * qd.abs() + 2.0) * qd.signum();
         // the torque held at rest after arriving moving `qd`, following `tours` tours of
         // 3 s each way
-        let held = |source: TorqueSource, tours: usize, qd: f64| {
-            let p = params(source);
+        let p = params(TorqueSource::Estimated);
+        let held = |tours: usize, qd: f64| {
             let mut e = TorqueEstimator::default();
             for _ in 0..tours {
                 run(&mut e, &p, &m, [v; 6], false, [beyond(v); 6], 1500);
@@ -264,21 +264,20 @@ mod tests {
             (t[1] - model[1], e.odd_part(1))
         };
         // after one 3 s stretch each way the odd part is partly known …
-        let (up, odd) = held(TorqueSource::Estimated, 1, v);
+        let (up, odd) = held(1, v);
         assert!(odd > 0.2 && odd < 2.0, "odd part {odd}");
-        let (down, _) = held(TorqueSource::Estimated, 1, -v);
+        let (down, _) = held(1, -v);
         assert!((up - down).abs() < 3.0, "{up} vs {down}");
         // … after ten tours (60 s of motion) the held torque is the 3 N·m, whichever way
         // the joint arrived, within 0.2 N·m; the odd part is the 2 N·m
-        let (up, odd) = held(TorqueSource::Estimated, 10, v);
-        let (down, _) = held(TorqueSource::Estimated, 10, -v);
+        let (up, odd) = held(10, v);
+        let (down, _) = held(10, -v);
         assert!((odd - 2.0).abs() < 0.2, "odd part {odd}");
         assert!(
             (up - 3.0).abs() < 0.2 && (down - 3.0).abs() < 0.2,
             "{up}, {down}"
         );
         // a joint seen moving one way only: no odd part, the old behaviour (3 + 2 learnt)
-        let p = params(TorqueSource::Estimated);
         let mut e = TorqueEstimator::default();
         let t = run(&mut e, &p, &m, [v; 6], false, [beyond(v); 6], 5000);
         assert_eq!(e.odd_part(1), 0.0);
