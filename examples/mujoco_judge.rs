@@ -102,6 +102,10 @@ struct Opts {
     /// parameters refitted, the named effects held at discovery's estimates); the default,
     /// `--no-recalibrate` keeps discovery's own refit.
     recalibrate: bool,
+    /// `--keep DIR`: the campaigns (`campaign.csv`, with `--discover` `heldout.csv`, as the
+    /// pa10 commands read them: the torques the fit used) and the models judged (`*.yaml`)
+    /// written to DIR, so `pa10 calibrate` / `pa10 discover` can be re-run on them offline.
+    keep: Option<PathBuf>,
 }
 
 fn opts() -> Result<Opts> {
@@ -122,6 +126,7 @@ fn opts() -> Result<Opts> {
         trace: None,
         discover: false,
         recalibrate: true,
+        keep: None,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -177,6 +182,7 @@ fn opts() -> Result<Opts> {
                     .context("--hold-damping: a number")?;
             }
             "--trace" => o.trace = Some(PathBuf::from(value("--trace")?)),
+            "--keep" => o.keep = Some(PathBuf::from(value("--keep")?)),
             "--check-ratio" => {
                 let r: f64 = value("--check-ratio")?
                     .parse()
@@ -195,7 +201,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE, --keep DIR)"
             ),
         }
     }
@@ -746,6 +752,11 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     } else {
         data
     };
+    if let Some(k) = &o.keep {
+        std::fs::create_dir_all(k).with_context(|| format!("--keep {}", k.display()))?;
+        data.save(k.join("campaign.csv"))?;
+        base.save(k.join("identified.yaml"))?;
+    }
     let full = calibrate(&base, &data, None, &copts, &|_| {})?.model;
     let placed = fit_base_only(&base, &data, None, &copts)?;
     // 2b. `pa10 discover` from the calibrated model with the held-out campaign.
@@ -756,6 +767,9 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             } else {
                 h.clone()
             };
+            if let Some(k) = &o.keep {
+                h.save(k.join("heldout.csv"))?;
+            }
             let t = Instant::now();
             let dopts = DiscoverOptions {
                 torque_constants: Some(kt),
@@ -787,6 +801,9 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     for (name, m) in &named {
         let path = dir.join(format!("{name}.yaml"));
         m.save(&path)?;
+        if let Some(k) = &o.keep {
+            m.save(k.join(format!("{name}.yaml")))?;
+        }
         paths.push(path);
     }
     // errs[model][load]: position errors, mm
