@@ -65,6 +65,8 @@ pub(super) struct Settled {
     pub(super) heldout_costs: Vec<f64>,
     /// Held-out RMS position error, mm.
     pub(super) gap_mm: f64,
+    /// Mean squared position error per configuration the gap counts, mm² ([`HeldOut`]).
+    pub(super) heldout_sq_mm2: Vec<f64>,
 }
 
 /// Refits `slots` from `start`: the noise model at `start`, a balanced fit, the plain lack
@@ -80,15 +82,16 @@ pub(super) fn settle(
     let (lof, a_fit) = plain_lack_of_fit(&prob, &cur);
     let eqs = fold_eqs(&prob, &cur.lin, &lay.folds).with_prior(prior, slots, &cur.state);
     let cols: Vec<usize> = (0..slots.len()).collect();
-    let (heldout_costs, gap_mm) = heldout(&prob, &cur.lin, &eqs, &lay.folds, &cols);
+    let h = heldout(&prob, &cur.lin, &eqs, &lay.folds, &cols);
     Ok(Settled {
         prob,
         noise,
         cur,
         lof,
         a_fit,
-        heldout_costs,
-        gap_mm,
+        heldout_costs: h.costs,
+        gap_mm: h.gap_mm,
+        heldout_sq_mm2: h.sq_mm2,
     })
 }
 
@@ -136,7 +139,11 @@ pub(super) fn round(
         let lin = fitted.lin.rewhitened(prob);
         let eqs_w = fold_eqs(prob, &lin, &lay.folds).with_prior(&pw, &with, &fitted.state);
         let all: Vec<usize> = (0..with.len()).collect();
-        let (costs, gap_w) = heldout(prob, &lin, &eqs_w, &lay.folds, &all);
+        let HeldOut {
+            costs,
+            gap_mm: gap_w,
+            ..
+        } = heldout(prob, &lin, &eqs_w, &lay.folds, &all);
         // judged on the holdout set alone (the last fold): only it reaches beyond the training
         // torques; the cross-validated training configurations would dilute the test
         let tail = |v: &[f64]| v[v.len().saturating_sub(holdout_len)..].to_vec();

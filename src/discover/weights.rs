@@ -118,7 +118,7 @@ pub(super) fn noise_floor_mm(
 ) -> f64 {
     let (mut ss, mut n) = (0.0, 0usize);
     // over the rows the held-out gap is measured on
-    let counts = super::scoring::in_gap(p, folds);
+    let counts = super::heldout::in_gap(p, folds);
     for &b in folds.iter().flatten().filter(|&&b| counts(b)) {
         for &i in &p.blocks[b].rows {
             let q = forward::link_angles(state, &p.obs[i]);
