@@ -372,40 +372,50 @@ impl Drop for Reaped {
 #[test]
 fn a_paused_control_thread_is_not_a_silent_controller() {
     let _serial = serial();
-    let dir = temp_dir("pause");
-    let loaded = Config::load(&config(&dir, &Model::nominal())).unwrap();
-    let arm = pa10::sim::rig::SimulatedArm::from_config(&loaded).unwrap();
-    let d = pa10::daemon::runtime::Daemon::start(&loaded, arm.host()).unwrap();
-    let before = pa10::daemon::runtime::lock(&d.core).status();
-    for _ in 0..10 {
-        {
-            let _paused = pa10::daemon::runtime::lock(&d.core);
-            std::thread::sleep(Duration::from_millis(30));
+    // Wall-clock threads on a shared host: the simulated controller itself may be delayed by
+    // other work (CI runs the judges beside the tests). A second attempt is allowed for the
+    // incomplete-cycle count only; the old code failed every attempt (7 of 10 pauses cost a
+    // cycle and the first one a stale-feedback fault).
+    for attempt in 0..2 {
+        let dir = temp_dir("pause");
+        let loaded = Config::load(&config(&dir, &Model::nominal())).unwrap();
+        let arm = pa10::sim::rig::SimulatedArm::from_config(&loaded).unwrap();
+        let d = pa10::daemon::runtime::Daemon::start(&loaded, arm.host()).unwrap();
+        let before = pa10::daemon::runtime::lock(&d.core).status();
+        for _ in 0..10 {
+            {
+                let _paused = pa10::daemon::runtime::lock(&d.core);
+                std::thread::sleep(Duration::from_millis(30));
+            }
+            std::thread::sleep(Duration::from_millis(60));
         }
-        std::thread::sleep(Duration::from_millis(60));
+        let after = pa10::daemon::runtime::lock(&d.core).status();
+        drop(d);
+        drop(arm);
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert_eq!(after.state, State::Holding, "{:?}", after.fault);
+        // the pauses happened (most of them delay a cycle past its period)
+        assert!(
+            after.cycle.overruns >= before.cycle.overruns + 5,
+            "{after:?}"
+        );
+        // and the control thread measured those waits for the lock (status.cycle.lock_wait_us)
+        assert!(
+            after.cycle.lock_waits >= before.cycle.lock_waits + 5,
+            "{after:?}"
+        );
+        assert!(after.cycle.lock_wait_us[2] >= 20_000.0, "{after:?}");
+        // the pauses cost no cycle (a shared host may still delay the simulated controller
+        // itself once or twice)
+        let incomplete = after.link.incomplete - before.link.incomplete;
+        if incomplete <= 2 {
+            return;
+        }
+        assert!(
+            attempt == 0,
+            "{incomplete} incomplete cycles, twice: {after:?}"
+        );
     }
-    let after = pa10::daemon::runtime::lock(&d.core).status();
-    drop(d);
-    drop(arm);
-    std::fs::remove_dir_all(&dir).unwrap();
-    assert_eq!(after.state, State::Holding, "{:?}", after.fault);
-    // the pauses happened (most of them delay a cycle past its period)
-    assert!(
-        after.cycle.overruns >= before.cycle.overruns + 5,
-        "{after:?}"
-    );
-    // (before the fix: 7 of 10 pauses cost a cycle and the first one a stale-feedback fault;
-    // a shared test host may still delay the simulated controller itself once or twice)
-    assert!(
-        after.link.incomplete - before.link.incomplete <= 2,
-        "{after:?}"
-    );
-    // and the control thread measured those waits for the lock (status.cycle.lock_wait_us)
-    assert!(
-        after.cycle.lock_waits >= before.cycle.lock_waits + 5,
-        "{after:?}"
-    );
-    assert!(after.cycle.lock_wait_us[2] >= 20_000.0, "{after:?}");
 }
 
 /// Pins the calling thread to `cpu`.
