@@ -61,12 +61,8 @@ pub(super) struct Settled {
     pub(super) cur: fit::Fitted,
     pub(super) lof: LackOfFit,
     pub(super) a_fit: DMatrix<f64>,
-    /// Whitened held-out cost per held-out configuration.
-    pub(super) heldout_costs: Vec<f64>,
-    /// Held-out RMS position error, mm.
-    pub(super) gap_mm: f64,
-    /// Mean squared position error per configuration the gap counts, mm² ([`HeldOut`]).
-    pub(super) heldout_sq_mm2: Vec<f64>,
+    /// Its prediction of the held-out configurations.
+    pub(super) heldout: HeldOut,
 }
 
 /// Refits `slots` from `start`: the noise model at `start`, a balanced fit, the plain lack
@@ -82,16 +78,14 @@ pub(super) fn settle(
     let (lof, a_fit) = plain_lack_of_fit(&prob, &cur);
     let eqs = fold_eqs(&prob, &cur.lin, &lay.folds).with_prior(prior, slots, &cur.state);
     let cols: Vec<usize> = (0..slots.len()).collect();
-    let h = heldout(&prob, &cur.lin, &eqs, &lay.folds, &cols);
+    let heldout = heldout(&prob, &cur.lin, &eqs, &lay.folds, &cols);
     Ok(Settled {
         prob,
         noise,
         cur,
         lof,
         a_fit,
-        heldout_costs: h.costs,
-        gap_mm: h.gap_mm,
-        heldout_sq_mm2: h.sq_mm2,
+        heldout,
     })
 }
 
@@ -109,7 +103,7 @@ pub(super) fn round(
     alpha: f64,
 ) -> Result<(Vec<Score>, Option<usize>), DiscoverError> {
     let (prob, cur) = (&st.prob, &st.cur);
-    let (base_costs, base_gap) = (&st.heldout_costs, st.gap_mm);
+    let (base_costs, base_gap) = (&st.heldout.costs, st.heldout.gap_mm);
     let reach = torque_reach(lay);
     let ln_n = lay.ln_n();
     let holdout_len = lay.holdout_len();
@@ -228,7 +222,7 @@ pub(super) fn complete(
         steps.push(Step {
             step: steps.len() + 1,
             gap_train_mm: train_rms_mm(&st.prob, &st.cur.lin.raw),
-            gap_heldout_mm: st.gap_mm,
+            gap_heldout_mm: st.heldout.gap_mm,
             lack_of_fit: st.lof,
             candidates: scores,
             accepted: pick.map(|ci| cands[ci].label()),
@@ -243,12 +237,12 @@ pub(super) fn complete(
         new_slots.extend(e.slots());
         let settled = settle(lay, &st.cur.state, &new_slots, &prior_of(&new_slots));
         let s = match settled {
-            Ok(s) if s.gap_mm <= st.gap_mm => s,
+            Ok(s) if s.heldout.gap_mm <= st.heldout.gap_mm => s,
             other => {
                 let why = match other {
                     Ok(s) => format!(
                         "rejected at its refit on its own weights: held-out RMS {:.3} → {:.3} mm",
-                        st.gap_mm, s.gap_mm
+                        st.heldout.gap_mm, s.heldout.gap_mm
                     ),
                     Err(err) => format!("fit failed: {err}; skipped"),
                 };
@@ -262,7 +256,7 @@ pub(super) fn complete(
                 break;
             }
         };
-        found.push((e, st.gap_mm - s.gap_mm));
+        found.push((e, st.heldout.gap_mm - s.heldout.gap_mm));
         st = s;
         *slots = new_slots;
     }

@@ -100,30 +100,6 @@ pub(super) fn heldout(
     }
 }
 
-impl Score {
-    /// `e`'s score before any test: `params` parameters, `identifiable` of them beyond the
-    /// current model, no evidence yet.
-    pub(super) fn untested(e: &Effect, params: usize, identifiable: usize) -> Self {
-        Self {
-            label: e.label(),
-            name: e.kind.name(),
-            joint: e.joint(),
-            params,
-            identifiable,
-            delta_chi2: 0.0,
-            delta_bic: f64::NEG_INFINITY,
-            p_adjusted: 1.0,
-            heldout_gain: None,
-            paired_t: None,
-            rank_p: None,
-            heldout_gap_mm: None,
-            stability: None,
-            passed: false,
-            note: String::new(),
-        }
-    }
-}
-
 /// Whether a refit's held-out RMS position error lets its whitened gain stand (`held_mm`:
 /// before and after, mm): it may grow by 1 %; by more only where that growth is not
 /// significant over the configurations the RMS counts (`worse`: per configuration, its mean

@@ -161,10 +161,9 @@ pub fn discover(
         mut cur,
         lof: lof0,
         mut a_fit,
-        heldout_costs: mut costs,
-        gap_mm: gap0,
-        heldout_sq_mm2: mut sq,
+        heldout: mut held_out,
     } = complete::settle(&lay, &first.state, &slots, &prior_of(&slots))?;
+    let gap0 = held_out.gap_mm;
     let noise0 = noise.clone();
     let significant = lof0.p_value < opts.alpha;
     // Between-configuration variance is either a repeatable resolver error or an effect of
@@ -580,9 +579,9 @@ pub fn discover(
             let cols_prev: Vec<usize> = (0..slots.len()).collect();
             let prev = heldout(&s2.prob, &lin_prev, &eqs_prev, &lay.folds, &cols_prev);
             let g_prev = prev.gap_mm;
-            let d = drops(&prev.costs, &s2.heldout_costs);
-            let worse = Paired::new(&drops(&s2.heldout_sq_mm2, &prev.sq_mm2), opts.alpha);
-            let g2 = s2.gap_mm;
+            let d = drops(&prev.costs, &s2.heldout.costs);
+            let worse = Paired::new(&drops(&s2.heldout.sq_mm2, &prev.sq_mm2), opts.alpha);
+            let g2 = s2.heldout.gap_mm;
             // And judged among the others the data select with it, on the same weights: from
             // a grossly wrong model (several springs missing at once) one spring alone may
             // not predict held-out configurations better — the others' misfit dominates and
@@ -628,7 +627,7 @@ pub fn discover(
                 continue;
             }
         };
-        let g2 = s2.gap_mm;
+        let g2 = s2.heldout.gap_mm;
         let with_others = among
             .as_ref()
             .map(|(d, g_with, g_without)| (Paired::new(d, opts.alpha), *g_with, *g_without));
@@ -669,15 +668,8 @@ pub fn discover(
             rejected.push(e);
             continue;
         }
-        (prob, noise, cur, slots, lof, a_fit, costs, sq) = (
-            s2.prob,
-            s2.noise,
-            s2.cur,
-            new_slots,
-            s2.lof,
-            s2.a_fit,
-            s2.heldout_costs,
-            s2.heldout_sq_mm2,
+        (prob, noise, cur, slots, lof, a_fit, held_out) = (
+            s2.prob, s2.noise, s2.cur, new_slots, s2.lof, s2.a_fit, s2.heldout,
         );
         found.push((e, gap - g2));
         gap = g2;
@@ -689,9 +681,7 @@ pub fn discover(
         cur,
         lof,
         a_fit,
-        heldout_costs: costs,
-        gap_mm: gap,
-        heldout_sq_mm2: sq,
+        heldout: held_out,
     };
     let (settled, pruned) = prune::prune(&lay, &prior_of, opts, &mut found, &mut slots, settled)?;
     // Completion beyond the training torques (see `complete`): a spring without its cubic
@@ -702,8 +692,7 @@ pub fn discover(
         cur,
         lof,
         a_fit,
-        gap_mm: gap,
-        ..
+        heldout: HeldOut { gap_mm: gap, .. },
     } = complete::complete(
         &lay, &prior_of, opts, &mut found, &mut slots, &mut steps, settled,
     )?;

@@ -394,6 +394,30 @@ pub(super) fn drops(before: &[f64], after: &[f64]) -> Vec<f64> {
     before.iter().zip(after).map(|(b, a)| b - a).collect()
 }
 
+impl Score {
+    /// `e`'s score before any test: `params` parameters, `identifiable` of them beyond the
+    /// current model, no evidence yet.
+    pub(super) fn untested(e: &Effect, params: usize, identifiable: usize) -> Self {
+        Self {
+            label: e.label(),
+            name: e.kind.name(),
+            joint: e.joint(),
+            params,
+            identifiable,
+            delta_chi2: 0.0,
+            delta_bic: f64::NEG_INFINITY,
+            p_adjusted: 1.0,
+            heldout_gain: None,
+            paired_t: None,
+            rank_p: None,
+            heldout_gap_mm: None,
+            stability: None,
+            passed: false,
+            note: String::new(),
+        }
+    }
+}
+
 /// The held-out comparison of two models over held-out configurations (`d`: per
 /// configuration cost drop): a one-sided paired t-test and a Wilcoxon signed-rank test,
 /// each at α/2 (Bonferroni), and a positive mean gain.
