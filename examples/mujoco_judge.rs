@@ -23,7 +23,8 @@
 //! `cargo run --release --example mujoco_judge [-- --json] [--quick] [--check] [--discover]
 //! [--no-recalibrate] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
-//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--gain-inertia KGM2] [--check-ratio R] [--trace FILE]`
+//! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--gain-inertia KGM2] [--check-ratio R] [--trace FILE]
+//! [--keep DIR] [--extra-configs N]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
 //! lab: `pa10 identify` first, `torque_source: estimated`, `hold_damping: 1`. Needs `pip install
 //! mujoco` (the Python interpreter `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another
@@ -36,7 +37,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use pa10::calib::dataset::{Dataset, Effort, Meta, Row};
-use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
+use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only, settled_model_torques};
 use pa10::calib::identify::SweepPlan;
 use pa10::daemon::api::sweep;
 use pa10::daemon::config::{Config, Settings};
@@ -60,6 +61,8 @@ use motion_path::six_points;
 mod tracking;
 
 const CAL_LOADS: [f64; 3] = [0.0, 22.0, 44.0];
+/// `--extra-configs`' limit (each is ≈ 6 simulated settles at three loads).
+const MAX_EXTRA_CONFIGS: usize = 200;
 const VAL_LOADS: [f64; 3] = [0.0, 45.0, 90.0];
 const PERIOD_S: f64 = 0.002;
 /// How much worse than the calibrated model's mean error the extended model's may be, as a
@@ -106,6 +109,11 @@ struct Opts {
     /// pa10 commands read them: the torques the fit used) and the models judged (`*.yaml`)
     /// written to DIR, so `pa10 calibrate` / `pa10 discover` can be re-run on them offline.
     keep: Option<PathBuf>,
+    /// `--extra-configs N`: N configurations drawn in the grid's box (their own random stream,
+    /// ids `c1`…) gathered after the 27 grid poses at the calibration loads, for a campaign
+    /// with more configurations than the paper's (the resolvers' repeatable error is a
+    /// function of the angles, so it averages over configurations, not over repeats).
+    extra_configs: usize,
 }
 
 fn opts() -> Result<Opts> {
@@ -127,6 +135,7 @@ fn opts() -> Result<Opts> {
         discover: false,
         recalibrate: true,
         keep: None,
+        extra_configs: 0,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -183,6 +192,16 @@ fn opts() -> Result<Opts> {
             }
             "--trace" => o.trace = Some(PathBuf::from(value("--trace")?)),
             "--keep" => o.keep = Some(PathBuf::from(value("--keep")?)),
+            "--extra-configs" => {
+                let n: usize = value("--extra-configs")?
+                    .parse()
+                    .context("--extra-configs: a count of configurations")?;
+                ensure!(
+                    n <= MAX_EXTRA_CONFIGS,
+                    "--extra-configs: at most {MAX_EXTRA_CONFIGS}, got {n}"
+                );
+                o.extra_configs = n;
+            }
             "--check-ratio" => {
                 let r: f64 = value("--check-ratio")?
                     .parse()
@@ -233,6 +252,24 @@ struct LoadRow {
     /// MuJoCo's tool, mean over poses, mm: the model's own error, without where the servo
     /// stopped (a stuck drive rests anywhere in its band; the placement error above has both).
     prediction_mean_mm: Vec<f64>,
+    /// The same with MuJoCo's spring torques in place of the daemon's (when the plant reports
+    /// them), mm: the model's kinematics and compliance alone, without the torque estimate's
+    /// error at rest (the difference to `prediction_mean_mm` is that estimate's share).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    prediction_true_torque_mean_mm: Vec<f64>,
+    /// The same from MuJoCo's motor angles as well (no resolver error), mm: what the model's
+    /// geometry and compliance alone get wrong (the floor's resolver share taken out).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    prediction_exact_mean_mm: Vec<f64>,
+    /// Per model, per joint: the model's joint deflection (link − motor, from MuJoCo's spring
+    /// torques) − MuJoCo's, mean over poses, mrad: which joint's compliance is off.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    deflection_error_mrad: Vec<[f64; 6]>,
+    /// Per model: how far the resolvers' error alone moves its tool (its prediction from the
+    /// resolvers' angles − from MuJoCo's motor angles, both with MuJoCo's torques), mean over
+    /// poses, mm: the floor these poses realised (`floor_mm` is its expectation).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    resolver_share_mean_mm: Vec<f64>,
 }
 
 /// With `--discover`: what `pa10 discover` said on the campaign and the held-out set.
@@ -704,6 +741,22 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         rows: gather(&mut ls, &configs, &CAL_LOADS, repeats, &mut rng)?,
         ..Dataset::default()
     };
+    // 1a. `--extra-configs`: drawn, reached and read on their own stream (so the validation
+    //     poses, drawn from `rng` later, are those of a run without them).
+    if o.extra_configs > 0 {
+        let mut crng = Pcg64::seed_from_u64(o.seed ^ 0xca1b);
+        let mut extra = Vec::with_capacity(o.extra_configs);
+        while extra.len() < o.extra_configs {
+            let t = random_pose(&mut crng, [0.45, -0.2, -0.05], [0.70, 0.2, 0.25]);
+            if let Ok(q) = nominal.ik_nearest(&t, &reference) {
+                reference = q;
+                extra.push((format!("c{}", extra.len() + 1), q));
+            }
+        }
+        let rows = gather(&mut ls, &extra, &CAL_LOADS, repeats, &mut crng)
+            .context("the extra configurations")?;
+        data.rows.extend(rows);
+    }
     data.meta = Some(Meta {
         inner_configs: Some(
             poses
@@ -745,12 +798,16 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         seed: o.seed,
         ..Default::default()
     };
-    // With the daemon's torques from the model, the fit's too (the currents carry friction).
+    // With the daemon's torques from the model, the fit's too (the currents carry friction):
+    // `pa10 calibrate --model-torques`, at the links' angles.
     let model_torques = ["model", "estimated"].contains(&o.torque_source.as_str());
+    let raw = data;
     let data = if model_torques {
-        data.with_model_torques(&base)
+        settled_model_torques(&base, &raw, None, &copts)
+            .context("the campaign's model torques")?
+            .0
     } else {
-        data
+        raw.clone()
     };
     if let Some(k) = &o.keep {
         std::fs::create_dir_all(k).with_context(|| format!("--keep {}", k.display()))?;
@@ -759,13 +816,19 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     }
     let full = calibrate(&base, &data, None, &copts, &|_| {})?.model;
     let placed = fit_base_only(&base, &data, None, &copts)?;
-    // 2b. `pa10 discover` from the calibrated model with the held-out campaign.
+    // 2b. `pa10 discover --model-torques` from the calibrated model with the held-out
+    //     campaign (both sets' torques at the calibrated model's link angles).
     let discovery = match &holdout {
         Some(h) => {
-            let h = if model_torques {
-                h.with_model_torques(&base)
+            let (data, h) = if model_torques {
+                (
+                    raw.with_model_torques(&full)
+                        .context("the campaign's model torques")?,
+                    h.with_model_torques(&full)
+                        .context("the held-out campaign's model torques")?,
+                )
             } else {
-                h.clone()
+                (data.clone(), h.clone())
             };
             if let Some(k) = &o.keep {
                 h.save(k.join("heldout.csv"))?;
@@ -778,6 +841,14 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             };
             let mut d = discover(&full, &data, Some(&h), &dopts).context("pa10 discover")?;
             if o.recalibrate && !d.effects.is_empty() {
+                // `pa10 calibrate --model extended.yaml --model-torques`
+                let data = if model_torques {
+                    settled_model_torques(&d.model, &raw, None, &copts)
+                        .context("the extended model's torques")?
+                        .0
+                } else {
+                    data
+                };
                 d.model = calibrate(&d.model, &data, None, &copts, &|_| {})
                     .context("recalibrating the extended model")?
                     .model;
@@ -809,6 +880,10 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     // errs[model][load]: position errors, mm
     let mut errs = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
     let mut predicted = errs.clone();
+    let mut predicted_true = errs.clone();
+    let mut predicted_exact = errs.clone();
+    let mut deflection = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
+    let mut resolver_share = errs.clone();
     let mut rest = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
     let mut settle_s = vec![vec![Vec::new(); VAL_LOADS.len()]; named.len()];
     let mut move_settle_s = vec![Vec::new(); named.len()];
@@ -833,6 +908,10 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                     for l in 0..VAL_LOADS.len() {
                         errs[mi][l].push(v.error_mm[l]);
                         predicted[mi][l].push(v.predicted_mm[l]);
+                        predicted_true[mi][l].extend(v.predicted_true_mm[l]);
+                        predicted_exact[mi][l].extend(v.predicted_exact_mm[l]);
+                        deflection[mi][l].extend(v.deflection_error_mrad[l]);
+                        resolver_share[mi][l].extend(v.resolver_share_mm[l]);
                         rest[mi][l].push(v.rest_mrad[l]);
                         settle_s[mi][l].push(v.settle_s[l]);
                     }
@@ -866,6 +945,29 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             extended_mean_mm: errs.get(2).map(|e| mean(&e[l])),
             extended_peak_mm: errs.get(2).map(|e| peak(&e[l])),
             prediction_mean_mm: predicted.iter().map(|p| mean(&p[l])).collect(),
+            prediction_true_torque_mean_mm: predicted_true
+                .iter()
+                .filter(|p| !p[l].is_empty())
+                .map(|p| mean(&p[l]))
+                .collect(),
+            resolver_share_mean_mm: resolver_share
+                .iter()
+                .filter(|p| !p[l].is_empty())
+                .map(|p| mean(&p[l]))
+                .collect(),
+            deflection_error_mrad: deflection
+                .iter()
+                .filter(|d| !d[l].is_empty())
+                .map(|d| {
+                    let n = d[l].len() as f64;
+                    std::array::from_fn(|j| d[l].iter().map(|x: &[f64; 6]| x[j]).sum::<f64>() / n)
+                })
+                .collect(),
+            prediction_exact_mean_mm: predicted_exact
+                .iter()
+                .filter(|p| !p[l].is_empty())
+                .map(|p| mean(&p[l]))
+                .collect(),
         })
         .collect();
     if let Some(i) = identification.as_mut() {
@@ -1139,6 +1241,14 @@ struct PoseResult {
     error_mm: [f64; 3],
     /// Per load: |MuJoCo's tool − the model's prediction at the rest angles|, mm.
     predicted_mm: [f64; 3],
+    /// Per load: the same with MuJoCo's spring torques (when the plant says them), mm.
+    predicted_true_mm: [Option<f64>; 3],
+    /// Per load: the same from MuJoCo's motor angles too (no resolver error), mm.
+    predicted_exact_mm: [Option<f64>; 3],
+    /// Per load: the model's joint deflection − MuJoCo's, mrad (when the plant says its springs).
+    deflection_error_mrad: [Option<[f64; 6]>; 3],
+    /// Per load: the model's tool from the resolvers' − from MuJoCo's motor angles, mm.
+    resolver_share_mm: [Option<f64>; 3],
     rest_mrad: [f64; 3],
     settle_s: [f64; 3],
     /// At rest at 0 N: MuJoCo's link angles, rad, and spring torques, N·m (when it says them).
@@ -1180,6 +1290,10 @@ fn validate_pose(
         setpoint: status(ls)?.setpoint,
         error_mm: [0.0; 3],
         predicted_mm: [0.0; 3],
+        predicted_true_mm: [None; 3],
+        predicted_exact_mm: [None; 3],
+        deflection_error_mrad: [None; 3],
+        resolver_share_mm: [None; 3],
         rest_mrad: [0.0; 3],
         settle_s: [0.0; 3],
         rest0: None,
@@ -1194,7 +1308,23 @@ fn validate_pose(
         let st = status(ls)?;
         let position_mm = |a: &Frame| pose_error(a, &got).fixed_rows::<3>(0).norm() * 1e3;
         r.error_mm[l] = position_mm(target);
-        r.predicted_mm[l] = position_mm(&predicted(&st, model, VAL_LOADS[l])?);
+        r.predicted_mm[l] = position_mm(&predicted(&st.q_motor, &st.tau, model, VAL_LOADS[l])?);
+        if let Some(tau) = ls.servo.plant().spring_torques() {
+            let at = predicted(&st.q_motor, &tau, model, VAL_LOADS[l])?;
+            r.predicted_true_mm[l] = Some(position_mm(&at));
+            let motor = ls.servo.plant().motor_angles();
+            let exact = predicted(&motor, &tau, model, VAL_LOADS[l])?;
+            r.predicted_exact_mm[l] = Some(position_mm(&exact));
+            let share = pose_error(&at, &exact).fixed_rows::<3>(0).norm() * 1e3;
+            r.resolver_share_mm[l] = Some(share);
+            let link = model
+                .link_from_motor(&motor, Torques::Given(&tau), &[0.0; 6])
+                .map_err(|e| anyhow!("the model's deflection at rest: {e}"))?
+                .q_link;
+            let (true_link, _) = ls.servo.plant().link_state();
+            r.deflection_error_mrad[l] =
+                Some(std::array::from_fn(|j| (link[j] - true_link[j]) * 1e3));
+        }
         r.rest_mrad[l] = rest_mrad(ls, &st);
         if l == 0 {
             let plant = ls.servo.plant();
@@ -1207,11 +1337,11 @@ fn validate_pose(
 }
 
 /// Where `model` says the tool is now (instrument frame): its link angles from the resolvers'
-/// angles and the torques the daemon's compensation used (backlash centred), through its
-/// kinematics with `load_n` (N) hung at the tool; `st` the daemon's status at rest.
-fn predicted(st: &Status, model: &Model, load_n: f64) -> Result<Frame> {
+/// angles `q_motor` (rad) and joint torques `tau` (N·m; the daemon's at rest, or MuJoCo's
+/// springs') with backlash centred, through its kinematics with `load_n` (N) hung at the tool.
+fn predicted(q_motor: &[f64; 6], tau: &[f64; 6], model: &Model, load_n: f64) -> Result<Frame> {
     let link = model
-        .link_from_motor(&st.q_motor, Torques::Given(&st.tau), &[0.0; 6])
+        .link_from_motor(q_motor, Torques::Given(tau), &[0.0; 6])
         .map_err(|e| anyhow!("the model's link angles at rest: {e}"))?
         .q_link;
     Ok(model.base_from_instrument().inverse() * model.fk_loaded(&link, load_n))
@@ -1322,6 +1452,20 @@ fn print(o: &Outcome) {
             .map(|e| format!("{e:.3}"))
             .collect();
         println!("  {:.0} N: {}", l.load_n, v.join(" / "));
+    }
+    if o.loads
+        .iter()
+        .any(|l| !l.prediction_true_torque_mean_mm.is_empty())
+    {
+        println!("The same with MuJoCo's spring torques in place of the daemon's, mean [mm]:");
+        for l in &o.loads {
+            let v: Vec<String> = l
+                .prediction_true_torque_mean_mm
+                .iter()
+                .map(|e| format!("{e:.3}"))
+                .collect();
+            println!("  {:.0} N: {}", l.load_n, v.join(" / "));
+        }
     }
     println!(
         "\nAt rest, MuJoCo's link − the daemon's setpoint (RMS over joints, mean over poses):"

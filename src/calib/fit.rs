@@ -355,6 +355,32 @@ impl levenberg_marquardt::LeastSquaresProblem<f64, Dyn, Dyn> for OuterProblem<'_
     }
 }
 
+/// `data` with `model`'s static joint torques in place of its efforts (pa10d's `torque_source:
+/// model`, `pa10 calibrate --model-torques`), evaluated where the links are
+/// ([`Dataset::with_model_torques`]): first at the link angles of the model the fit starts
+/// from (`model`'s springs, the seed stiffness where it has none), then — after a first
+/// [`calibrate`] on those — at the fitted model's. Returns that dataset, for the fit to run
+/// on, and the first fit's model (whose springs place other datasets' links alike).
+///
+/// # Errors
+/// As [`calibrate`]; a row whose link angles do not converge under its load.
+pub fn settled_model_torques(
+    model: &Model,
+    data: &Dataset,
+    lines: Option<&Dataset>,
+    opts: &CalibOptions,
+) -> Result<(Dataset, Model), CalibError> {
+    let start = start_model(model, data, opts)?;
+    let first = calibrate(
+        model,
+        &data.with_model_torques(&start)?,
+        lines,
+        opts,
+        &|_| {},
+    )?;
+    Ok((data.with_model_torques(&first.model)?, first.model))
+}
+
 /// Runs the two-level calibration of `model` on `data` (optional straight-line `lines` for
 /// the base-frame seed). `progress` is called with the number of finished starts.
 pub fn calibrate(

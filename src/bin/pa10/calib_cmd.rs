@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use pa10::calib::dataset::Dataset;
-use pa10::calib::fit::{CalibOptions, Weighting, row_residual};
+use pa10::calib::fit::{CalibOptions, Weighting, row_residual, settled_model_torques};
 use pa10::calib::report::{self, ByLoad, Report};
 
 use crate::model_cmds::ModelArg;
@@ -64,10 +64,11 @@ pub struct CalibrateArgs {
     /// Motor current → joint torque constants, N·m/A, six comma-separated (for `i1..i6` data).
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     torque_constants: Option<Vec<f64>>,
-    /// Joint torques from the start model's statics (its bodies and each row's hung load at
-    /// the row's resolver angles) instead of the data's torque or current columns: for a daemon
-    /// that runs `torque_source: model`, so the springs are identified on the torques it will
-    /// use and the currents' friction never enters the fit (docs/judge.md).
+    /// Joint torques from the start model's statics (its bodies and each row's hung load, at
+    /// the row's link angles: the resolvers' less the deflection, from a first fit's springs)
+    /// instead of the data's torque or current columns: for a daemon that runs
+    /// `torque_source: model`, so the springs are identified on the torques it will use and
+    /// the currents' friction never enters the fit (docs/judge.md).
     #[arg(long)]
     model_torques: bool,
     /// Write residual plots (SVG) into this directory.
@@ -100,10 +101,6 @@ pub fn calibrate(a: &CalibrateArgs) -> Result<()> {
     let mut data = load(&a.data)?;
     let lines = a.base_seed.as_deref().map(load).transpose()?;
     let mut val = a.validate.as_deref().map(load).transpose()?;
-    if a.model_torques {
-        data = data.with_model_torques(&model);
-        val = val.map(|v| v.with_model_torques(&model));
-    }
     let inner_configs = match a.inner_configs.as_deref() {
         None => None,
         Some("all") => {
@@ -135,6 +132,15 @@ pub fn calibrate(a: &CalibrateArgs) -> Result<()> {
         },
         ..Default::default()
     };
+    if a.model_torques {
+        let (d, placed) = settled_model_torques(&model, &data, lines.as_ref(), &opts)
+            .with_context(|| format!("--model-torques on {}", a.data.display()))?;
+        data = d;
+        val = val
+            .map(|v| v.with_model_torques(&placed))
+            .transpose()
+            .context("--model-torques on --validate")?;
+    }
     if let Some(dir) = &a.report {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }

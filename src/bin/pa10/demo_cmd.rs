@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use pa10::calib::dataset::{Dataset, Effort, Meta, Row};
-use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only};
+use pa10::calib::fit::{CalibOptions, calibrate, fit_base_only, settled_model_torques};
 use pa10::calib::identify::SweepPlan;
 use pa10::daemon::api::sweep;
 use pa10::daemon::config::{Config, Settings, TorqueSource};
@@ -342,7 +342,7 @@ fn demo(a: &DemoArgs, dir: &Path, t0: Instant) -> Result<()> {
         ..Default::default()
     };
     let fitted = if identify_first {
-        data.with_model_torques(&base)
+        settled_model_torques(&base, &data, None, &opts)?.0
     } else {
         data.clone()
     };

@@ -53,7 +53,7 @@ pub struct DiscoverArgs {
     #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
     torque_constants: Option<Vec<f64>>,
     /// Joint torques from the start model's statics (its bodies and each row's hung load at
-    /// the row's resolver angles) instead of the data's torque or current columns, in both
+    /// the row's link angles under its springs) instead of the data's torque or current columns, in both
     /// sets: as `pa10 calibrate --model-torques`, for data gathered on drives whose currents
     /// at rest carry held friction (docs/judge.md).
     #[arg(long)]
@@ -69,8 +69,13 @@ pub fn run(a: &DiscoverArgs) -> Result<()> {
     let mut data = load(&a.data)?;
     let mut holdout = a.holdout.as_deref().map(load).transpose()?;
     if a.model_torques {
-        data = data.with_model_torques(&model);
-        holdout = holdout.map(|h| h.with_model_torques(&model));
+        data = data
+            .with_model_torques(&model)
+            .with_context(|| format!("--model-torques on {}", a.data.display()))?;
+        holdout = holdout
+            .map(|h| h.with_model_torques(&model))
+            .transpose()
+            .context("--model-torques on --holdout")?;
     }
     let torque_constants = crate::calib_cmd::torque_constants(&a.torque_constants)?;
     let only = match &a.only {
