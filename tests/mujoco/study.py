@@ -164,6 +164,26 @@ def discovery_table(results):
         print(f"The extended model's own error (at the rest angles, without where the servo stopped) worse "
               f"than the calibrated model's by more than {EXTENDED_SLACK}x the floor at a load: {own_worse} "
               f"of {own_runs} (any drives).")
+    decomposition(rs)
+
+
+def decomposition(rs):
+    """Where the judge says the plant's springs (docs/judge.md §9): per drives, the extended model
+    alone (MuJoCo's motor angles and torques) / the floor, and its own error ÷ the floor the
+    validation poses realised (the resolvers' share), mean (max) at 0 / 45 / 90 N."""
+    keys = ("prediction_exact_mean_mm", "resolver_share_mean_mm", "prediction_true_torque_mean_mm")
+    have = [r for r in rs if all(len(l.get(k, [])) == 3 for l in r["loads"] for k in keys)]
+    for drives in sorted({r["friction_model"] for r in have}):
+        g = [r for r in have if r["friction_model"] == drives]
+        alone = [[l["prediction_exact_mean_mm"][2] / r["floor_mm"] for l in r["loads"]] for r in g]
+        own = [[l["prediction_mean_mm"][2] / l["resolver_share_mean_mm"][2] for l in r["loads"]] for r in g]
+        true = [[l["prediction_true_torque_mean_mm"][2] / l["resolver_share_mean_mm"][2] for l in r["loads"]]
+                for r in g]
+        col = lambda v: " / ".join(f"{statistics.mean(x[i] for x in v):.2f} ({max(x[i] for x in v):.2f})"
+                                   for i in range(3))
+        print(f"{drives}, {len(g)} runs: the extended model alone / floor {col(alone)}; its own error ÷ the "
+              f"floor the poses realised {col(own)}, with MuJoCo's torques {col(true)}; within 1.1x of the "
+              f"realised floor at every load: {sum(all(x <= 1.1 for x in o) for o in own)} of {len(g)}.")
 
 
 def summary(results):
