@@ -930,6 +930,13 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     set_load(&mut ls, 0.0)?;
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
     let peak = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    // per model that has values at load `l` (the plant says its springs): their mean
+    let reported = |v: &[Vec<Vec<f64>>], l: usize| {
+        v.iter()
+            .filter(|p| !p[l].is_empty())
+            .map(|p| mean(&p[l]))
+            .collect()
+    };
     let loads = VAL_LOADS
         .iter()
         .enumerate()
@@ -945,16 +952,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             extended_mean_mm: errs.get(2).map(|e| mean(&e[l])),
             extended_peak_mm: errs.get(2).map(|e| peak(&e[l])),
             prediction_mean_mm: predicted.iter().map(|p| mean(&p[l])).collect(),
-            prediction_true_torque_mean_mm: predicted_true
-                .iter()
-                .filter(|p| !p[l].is_empty())
-                .map(|p| mean(&p[l]))
-                .collect(),
-            resolver_share_mean_mm: resolver_share
-                .iter()
-                .filter(|p| !p[l].is_empty())
-                .map(|p| mean(&p[l]))
-                .collect(),
+            prediction_true_torque_mean_mm: reported(&predicted_true, l),
+            resolver_share_mean_mm: reported(&resolver_share, l),
             deflection_error_mrad: deflection
                 .iter()
                 .filter(|d| !d[l].is_empty())
@@ -963,11 +962,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                     std::array::from_fn(|j| d[l].iter().map(|x: &[f64; 6]| x[j]).sum::<f64>() / n)
                 })
                 .collect(),
-            prediction_exact_mean_mm: predicted_exact
-                .iter()
-                .filter(|p| !p[l].is_empty())
-                .map(|p| mean(&p[l]))
-                .collect(),
+            prediction_exact_mean_mm: reported(&predicted_exact, l),
         })
         .collect();
     if let Some(i) = identification.as_mut() {
@@ -1306,21 +1301,16 @@ fn validate_pose(
         r.settle_s[l] = set_load(ls, VAL_LOADS[l])?;
         let got = truth_base.inverse() * ls.servo.true_tool_pose();
         let st = status(ls)?;
-        let position_mm = |a: &Frame| pose_error(a, &got).fixed_rows::<3>(0).norm() * 1e3;
-        r.error_mm[l] = position_mm(target);
-        r.predicted_mm[l] = position_mm(&predicted(&st.q_motor, &st.tau, model, VAL_LOADS[l])?);
+        r.error_mm[l] = apart_mm(target, &got);
+        let (_, own) = predicted(&st.q_motor, &st.tau, model, VAL_LOADS[l])?;
+        r.predicted_mm[l] = apart_mm(&own, &got);
         if let Some(tau) = ls.servo.plant().spring_torques() {
-            let at = predicted(&st.q_motor, &tau, model, VAL_LOADS[l])?;
-            r.predicted_true_mm[l] = Some(position_mm(&at));
+            let (_, at) = predicted(&st.q_motor, &tau, model, VAL_LOADS[l])?;
+            r.predicted_true_mm[l] = Some(apart_mm(&at, &got));
             let motor = ls.servo.plant().motor_angles();
-            let exact = predicted(&motor, &tau, model, VAL_LOADS[l])?;
-            r.predicted_exact_mm[l] = Some(position_mm(&exact));
-            let share = pose_error(&at, &exact).fixed_rows::<3>(0).norm() * 1e3;
-            r.resolver_share_mm[l] = Some(share);
-            let link = model
-                .link_from_motor(&motor, Torques::Given(&tau), &[0.0; 6])
-                .map_err(|e| anyhow!("the model's deflection at rest: {e}"))?
-                .q_link;
+            let (link, exact) = predicted(&motor, &tau, model, VAL_LOADS[l])?;
+            r.predicted_exact_mm[l] = Some(apart_mm(&exact, &got));
+            r.resolver_share_mm[l] = Some(apart_mm(&at, &exact));
             let (true_link, _) = ls.servo.plant().link_state();
             r.deflection_error_mrad[l] =
                 Some(std::array::from_fn(|j| (link[j] - true_link[j]) * 1e3));
@@ -1339,12 +1329,24 @@ fn validate_pose(
 /// Where `model` says the tool is now (instrument frame): its link angles from the resolvers'
 /// angles `q_motor` (rad) and joint torques `tau` (N·m; the daemon's at rest, or MuJoCo's
 /// springs') with backlash centred, through its kinematics with `load_n` (N) hung at the tool.
-fn predicted(q_motor: &[f64; 6], tau: &[f64; 6], model: &Model, load_n: f64) -> Result<Frame> {
+/// Returns those link angles (rad) and the tool.
+fn predicted(
+    q_motor: &[f64; 6],
+    tau: &[f64; 6],
+    model: &Model,
+    load_n: f64,
+) -> Result<([f64; 6], Frame)> {
     let link = model
         .link_from_motor(q_motor, Torques::Given(tau), &[0.0; 6])
         .map_err(|e| anyhow!("the model's link angles at rest: {e}"))?
         .q_link;
-    Ok(model.base_from_instrument().inverse() * model.fk_loaded(&link, load_n))
+    let tool = model.base_from_instrument().inverse() * model.fk_loaded(&link, load_n);
+    Ok((link, tool))
+}
+
+/// Distance between the tool points of `a` and `b`, mm.
+fn apart_mm(a: &Frame, b: &Frame) -> f64 {
+    pose_error(a, b).fixed_rows::<3>(0).norm() * 1e3
 }
 
 /// RMS over joints of MuJoCo's link angles − the daemon's setpoint (in `st`), mrad.
@@ -1445,27 +1447,19 @@ fn print(o: &Outcome) {
             ""
         }
     );
-    for l in &o.loads {
-        let v: Vec<String> = l
-            .prediction_mean_mm
-            .iter()
-            .map(|e| format!("{e:.3}"))
-            .collect();
-        println!("  {:.0} N: {}", l.load_n, v.join(" / "));
-    }
+    let per_load = |field: fn(&LoadRow) -> &[f64]| {
+        for l in &o.loads {
+            let v: Vec<String> = field(l).iter().map(|e| format!("{e:.3}")).collect();
+            println!("  {:.0} N: {}", l.load_n, v.join(" / "));
+        }
+    };
+    per_load(|l| &l.prediction_mean_mm);
     if o.loads
         .iter()
         .any(|l| !l.prediction_true_torque_mean_mm.is_empty())
     {
         println!("The same with MuJoCo's spring torques in place of the daemon's, mean [mm]:");
-        for l in &o.loads {
-            let v: Vec<String> = l
-                .prediction_true_torque_mean_mm
-                .iter()
-                .map(|e| format!("{e:.3}"))
-                .collect();
-            println!("  {:.0} N: {}", l.load_n, v.join(" / "));
-        }
+        per_load(|l| &l.prediction_true_torque_mean_mm);
     }
     println!(
         "\nAt rest, MuJoCo's link − the daemon's setpoint (RMS over joints, mean over poses):"
