@@ -24,13 +24,14 @@
 //! [--no-recalibrate] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
 //! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--gain-inertia KGM2] [--check-ratio R] [--trace FILE]
-//! [--keep DIR] [--extra-configs N] [--validation-poses N]`
+//! [--keep DIR] [--extra-configs N] [--extra-flipped] [--validation-poses N]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
 //! lab: `pa10 identify` first, `torque_source: estimated`, `hold_damping: 1`. Needs `pip install
 //! mujoco` (the Python interpreter `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another
 //! plant script speaking docs/plant-protocol.md). docs/judge.md quotes it;
 //! `tests/mujoco/study.py` runs it over seeds and friction behaviours.
 
+use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Instant;
@@ -121,6 +122,9 @@ struct Opts {
     /// resolvers' error realised at six poses is within ±0.25× of the floor between seeds:
     /// more poses judge one seed against the floor more tightly.
     validation_poses: Option<usize>,
+    /// `--extra-flipped`: every other `--extra-configs` configuration reached with the other
+    /// wrist (J4 + π, −J5, J6 + π): a campaign that sees both wrist branches.
+    extra_flipped: bool,
 }
 
 fn opts() -> Result<Opts> {
@@ -144,6 +148,7 @@ fn opts() -> Result<Opts> {
         keep: None,
         extra_configs: 0,
         validation_poses: None,
+        extra_flipped: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -151,6 +156,7 @@ fn opts() -> Result<Opts> {
         match a.as_str() {
             "--json" => o.json = true,
             "--quick" => o.quick = true,
+            "--extra-flipped" => o.extra_flipped = true,
             "--check" => o.check = true,
             "--identify" => o.identify = true,
             "--discover" => o.discover = true,
@@ -782,8 +788,17 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         let mut extra = Vec::with_capacity(o.extra_configs);
         while extra.len() < o.extra_configs {
             let t = random_pose(&mut crng, [0.45, -0.2, -0.05], [0.70, 0.2, 0.25]);
-            if let Ok(q) = nominal.ik_nearest(&t, &reference) {
-                reference = q;
+            // `--extra-flipped`: every other one with the wrist flipped (J4 + π, −J5, J6 + π)
+            let flip = o.extra_flipped && extra.len() % 2 == 1;
+            let near = if flip {
+                wrist_flipped(&reference)
+            } else {
+                reference
+            };
+            if let Ok(q) = nominal.ik_nearest(&t, &near) {
+                if !flip {
+                    reference = q;
+                }
                 extra.push((format!("c{}", extra.len() + 1), q));
             }
         }
@@ -1107,6 +1122,13 @@ fn novel_pose(nominal: &Model, rng: &mut Pcg64) -> (Frame, [f64; 6]) {
             return (t, q);
         }
     }
+}
+
+/// The same tool pose with the other wrist: J4 + π (toward zero), −J5, J6 + π (toward
+/// zero), rad.
+fn wrist_flipped(q: &[f64; 6]) -> [f64; 6] {
+    let half = |a: f64| if a > 0.0 { a - PI } else { a + PI };
+    [q[0], q[1], q[2], half(q[3]), -q[4], half(q[5])]
 }
 
 /// `n` novel configurations (ids `H1`…) of [`novel_pose`].
