@@ -307,6 +307,9 @@ struct PoseDetail {
     error_mm: Vec<Option<[f64; 3]>>,
     /// Each model's own error from MuJoCo's motor angles and torques (the model alone), mm.
     exact_mm: Vec<[Option<f64>; 3]>,
+    /// The daemon's `position_sigma_mm` at 0 N with each model: its covariance's tool
+    /// position uncertainty (1σ, mm) at the setpoint, `null` without one.
+    sigma_mm: Vec<Option<f64>>,
 }
 
 /// With `--discover`: what `pa10 discover` said on the campaign and the held-out set.
@@ -947,6 +950,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             setpoint_rad: None,
             error_mm: vec![None; named.len()],
             exact_mm: vec![[None; 3]; named.len()],
+            sigma_mm: vec![None; named.len()],
         };
         for (mi, (name, m)) in named.iter().enumerate() {
             let path = paths[mi].display().to_string();
@@ -963,6 +967,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                     }
                     d.error_mm[mi] = Some(v.error_mm);
                     d.exact_mm[mi] = v.predicted_exact_mm;
+                    d.sigma_mm[mi] = v.sigma_mm;
                     at_rest.extend(v.rest0);
                     for l in 0..VAL_LOADS.len() {
                         errs[mi][l].push(v.error_mm[l]);
@@ -1324,6 +1329,8 @@ struct PoseResult {
     settle_s: [f64; 3],
     /// At rest at 0 N: MuJoCo's link angles, rad, and spring torques, N·m (when it says them).
     rest0: Option<([f64; 6], [f64; 6])>,
+    /// At rest at 0 N: the daemon's `position_sigma_mm`.
+    sigma_mm: Option<f64>,
 }
 
 /// Every joint's offset of the approach configuration from a validation pose's, rad: each
@@ -1369,6 +1376,7 @@ fn validate_pose(
         rest_mrad: [0.0; 3],
         settle_s: [0.0; 3],
         rest0: None,
+        sigma_mm: None,
     };
     let mut order = vec![0, 1, 2];
     if reversed {
@@ -1378,6 +1386,9 @@ fn validate_pose(
         r.settle_s[l] = set_load(ls, VAL_LOADS[l])?;
         let st = status(ls)?;
         r.rest_mrad[l] = rest_mrad(ls, &st);
+        if l == 0 {
+            r.sigma_mm = st.position_sigma_mm;
+        }
         let o = observe(ls)?;
         let got = truth_base.inverse() * o.tool;
         r.error_mm[l] = apart_mm(target, &got);

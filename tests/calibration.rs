@@ -368,3 +368,73 @@ fn bad_options_and_data_are_refused() {
         ) < 0.35
     );
 }
+
+/// The paper's 27 poses all take one wrist (J5 > 0). The calibration report says the other
+/// wrist's poses are determined worse (its predicted uncertainty there over
+/// [`report::WRIST_WARN_RATIO`] × the campaign's), and they are: validated at the same
+/// poses with the wrist flipped, the model misses by more. Measuring every configuration's
+/// twin as well removes both the warning and the gap.
+#[test]
+fn a_campaign_of_one_wrist_is_flagged_and_one_of_both_is_not() {
+    use rand::SeedableRng;
+    let _cpu = crate::common::busy_lock();
+    let c = paper_campaign(&CampaignSpec::default()).unwrap();
+    let nominal = Model::nominal()
+        .with_tool(&CampaignSpec::default().tool)
+        .unwrap();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(77);
+    // each row of `d` again at its configuration's other-wrist twin (ids `…w`)
+    let twins = |d: &pa10::calib::dataset::Dataset, rng: &mut rand_pcg::Pcg64| {
+        let mut out = d.clone();
+        out.rows = d
+            .rows
+            .iter()
+            .filter_map(|r| {
+                let q = nominal.other_wrist(&r.q)?;
+                Some(
+                    c.truth
+                        .measure(&format!("{}w", r.config_id), &q, r.load_n, rng)
+                        .unwrap(),
+                )
+            })
+            .collect();
+        out
+    };
+    let val_flipped = twins(&c.val, &mut rng);
+    assert!(val_flipped.rows.len() * 2 > c.val.rows.len());
+    let mut both = c.cal.clone();
+    both.rows.extend(twins(&c.cal, &mut rng).rows);
+    let o = CalibOptions::default();
+    let fit = |d| {
+        calibrate(&Model::nominal(), d, Some(&c.lines), &o, &|_| {})
+            .unwrap()
+            .model
+    };
+    let (one, two) = (fit(&c.cal), fit(&both));
+    let w1 = report::wrist_coverage(&one, &c.cal).unwrap();
+    let w2 = report::wrist_coverage(&two, &both).unwrap();
+    assert_eq!(w1.configurations, [27, 0]);
+    assert_eq!(w2.configurations, [27, 27]);
+    let r1 = w1.other_wrist_sigma_mm / w1.sigma_mm;
+    let r2 = w2.other_wrist_sigma_mm / w2.sigma_mm;
+    assert!(
+        w1.warning.is_some() && r1 > report::WRIST_WARN_RATIO,
+        "{w1:?}"
+    );
+    assert!(w2.warning.is_none() && r2 < 1.2, "{w2:?}");
+    // the prediction holds: at the flipped validation poses one wrist misses by more
+    let err = |m: &Model| {
+        mean(
+            &evaluate(m, &val_flipped, None)
+                .unwrap()
+                .iter()
+                .map(|s| s.mean_mm)
+                .collect::<Vec<_>>(),
+        )
+    };
+    let (e1, e2) = (err(&one), err(&two));
+    eprintln!(
+        "flipped validation: one wrist {e1:.3} mm, both {e2:.3} mm; sigma ratios {r1:.2}, {r2:.2}"
+    );
+    assert!(e1 > 1.3 * e2, "one wrist {e1} mm vs both {e2} mm");
+}

@@ -275,6 +275,29 @@ impl Model {
             .map_err(|_| IkError::NonFinite)
     }
 
+    /// The link angles (rad) that put the tool where it is at `q` with the other wrist: the
+    /// spherical wrist's twin (J4 ± π, −J5, J6 ± π on the ideal arm), solved on this model;
+    /// `None` where the twin is outside the joint limits or J5 is at its singularity (0).
+    ///
+    /// ```
+    /// use pa10::model::Model;
+    /// let m = Model::nominal();
+    /// let q = [0.1, 0.4, 1.5, 0.2, 1.0, -0.3];
+    /// let t = m.other_wrist(&q).unwrap();
+    /// assert!(t[4] < 0.0 && (t[3] - q[3]).abs() > 3.0);
+    /// let (a, b) = (m.fk(&q), m.fk(&t));
+    /// assert!((a.translation.vector - b.translation.vector).norm() < 1e-9);
+    /// ```
+    pub fn other_wrist(&self, q: &[f64; 6]) -> Option<[f64; 6]> {
+        if q[4] == 0.0 || !q.iter().all(|v| v.is_finite()) {
+            return None;
+        }
+        let half = |a: f64| if a > 0.0 { a - PI } else { a + PI };
+        let reference = [q[0], q[1], q[2], half(q[3]), -q[4], half(q[5])];
+        let t = self.ik_nearest(&self.fk(q), &reference).ok()?;
+        (t[4] * q[4] < 0.0).then_some(t)
+    }
+
     /// The solution nearest to `reference` (link angles, rad).
     pub fn ik_nearest(&self, target: &Frame, reference: &[f64; 6]) -> Result<[f64; 6], IkError> {
         self.ik(target, reference).map(|s| s.nearest())

@@ -165,6 +165,7 @@ def discovery_table(results):
               f"than the calibrated model's by more than {EXTENDED_SLACK}x the floor at a load: {own_worse} "
               f"of {own_runs} (any drives).")
     decomposition(rs)
+    wrists(rs)
 
 
 def decomposition(rs):
@@ -184,6 +185,33 @@ def decomposition(rs):
         print(f"{drives}, {len(g)} runs: the extended model alone / floor {col(alone)}; its own error ÷ the "
               f"floor the poses realised {col(own)}, with MuJoCo's torques {col(true)}; within 1.1x of the "
               f"realised floor at every load: {sum(all(x <= 1.1 for x in o) for o in own)} of {len(g)}.")
+
+
+def wrists(rs):
+    """Per drives, from the judge's per-pose detail (`validation_poses_detail`): each model's
+    position error and the model alone (MuJoCo's motor angles and torques) / the floor, mean at
+    0 / 45 / 90 N, over the validation poses with the wrist as the paper's grid (J5 > 0) and
+    with it flipped (J5 < 0: J4 near ±π), and how many of each."""
+    have = [r for r in rs if r.get("validation_poses_detail")]
+    for drives in sorted({r["friction_model"] for r in have}):
+        g = [r for r in have if r["friction_model"] == drives]
+        for flipped in (False, True):
+            poses = [(r, p) for r in g for p in r["validation_poses_detail"]
+                     if p["setpoint_rad"] is not None and (p["setpoint_rad"][4] < 0) == flipped
+                     and all(e is not None for e in p["error_mm"])]
+            if not poses:
+                continue
+            names = ("nominal", "calibrated", "extended")[:len(poses[0][1]["error_mm"])]
+            cells = []
+            for m, name in enumerate(names[1:], start=1):
+                err = " / ".join(f"{statistics.mean(p['error_mm'][m][l] / r['floor_mm'] for r, p in poses):.2f}"
+                                 for l in range(3))
+                exact = [[(p["exact_mm"][m][l], r["floor_mm"]) for r, p in poses] for l in range(3)]
+                alone = " / ".join(f"{statistics.mean(x / f for x, f in a):.2f}" for a in exact) if all(
+                    x is not None for a in exact for x, _ in a) else "–"
+                cells.append(f"{name} {err} (alone {alone})")
+            print(f"{drives}, wrist {'flipped' if flipped else 'as the grid'}, {len(poses)} poses of "
+                  f"{len(g)} runs: position error / floor at 0 / 45 / 90 N: {'; '.join(cells)}.")
 
 
 def summary(results):

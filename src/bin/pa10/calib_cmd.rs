@@ -152,6 +152,14 @@ pub fn calibrate(a: &CalibrateArgs) -> Result<()> {
     if let Some(m) = &outcome.result.misfit {
         eprintln!("pa10: warning: {m}");
     }
+    if let Some(m) = outcome
+        .report
+        .wrist
+        .as_ref()
+        .and_then(|w| w.warning.as_ref())
+    {
+        eprintln!("pa10: warning: {m}");
+    }
     outcome
         .result
         .model
@@ -317,6 +325,16 @@ fn print_report(r: &Report, out: &Path) -> Result<()> {
     }
     if let Some(m) = &r.misfit {
         writeln!(o, "\nwarning: {m}")?;
+    }
+    if let Some(w) = &r.wrist {
+        writeln!(
+            o,
+            "\npredicted tool position 1σ without load (median): {:.3} mm at the campaign's configurations, {:.3} mm at the same poses with the other wrist ({} of them)",
+            w.sigma_mm, w.other_wrist_sigma_mm, w.twins
+        )?;
+        if let Some(m) = &w.warning {
+            writeln!(o, "warning: {m}")?;
+        }
     }
     writeln!(o, "\nwrote {}", out.display())?;
     Ok(())
