@@ -359,6 +359,14 @@ fn sim_measure_then_calibrate_end_to_end() {
     assert_eq!(j["stiffness"]["klin"].as_array().unwrap().len(), 3);
     assert_eq!(j["stiffness"]["kcub"].as_array().unwrap().len(), 3);
     assert_eq!(j["params"].as_array().unwrap().len(), 30);
+    // the paper's 27 poses take one wrist: the report says the other is determined worse
+    let w = &j["wrist"];
+    assert_eq!(w["configurations"], serde_json::json!([27, 0]));
+    assert!(
+        w["other_wrist_sigma_mm"].as_f64().unwrap() > 1.5 * w["sigma_mm"].as_f64().unwrap(),
+        "{w}"
+    );
+    assert!(w["warning"].as_str().unwrap().contains("other wrist"));
     for f in [
         "residuals-before.svg",
         "residuals-after.svg",
