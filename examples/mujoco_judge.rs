@@ -1252,6 +1252,8 @@ fn dynamics(
 /// J5's link after a 0.2 rad move of J5 at [`HOME`] with 90 N at the tool (calibrated model).
 #[derive(Debug, Serialize)]
 struct Ring {
+    /// Time from holding until the daemon said in position (at most [`RING_WAIT_S`]), s.
+    in_position_after_s: f64,
     /// Dominant frequency of MuJoCo's J5 link − setpoint after the move (zero crossings), Hz.
     freq_hz: f64,
     /// Its amplitude (half peak-to-peak) in the first and the last half second of 4 s, mrad.
@@ -1261,7 +1263,11 @@ struct Ring {
     ended: String,
 }
 
-/// Moves J5 by 0.2 rad and records MuJoCo's J5 link − the daemon's setpoint every cycle for 4 s.
+/// How long the ring-down waits after the move for the daemon's in position, s.
+const RING_WAIT_S: f64 = 10.0;
+
+/// Moves J5 by 0.2 rad and, once the daemon holds and says in position, records MuJoCo's J5
+/// link − the daemon's setpoint every cycle for 4 s.
 fn ring_down(ls: &mut Lockstep) -> Result<Ring> {
     let mut q = HOME;
     q[4] += 0.2;
@@ -1273,6 +1279,16 @@ fn ring_down(ls: &mut Lockstep) -> Result<Ring> {
             break;
         }
     }
+    // from where `pa10 move --wait` would measure: in position (a stuck drive off its target
+    // is broken away by the hold loop first, and each slip excites the link mode anew)
+    let holding = ls.now();
+    while !status(ls)?.in_position && ls.now() < holding + RING_WAIT_S {
+        ls.run_for(PERIOD_S);
+        if status(ls)?.state == State::Fault {
+            break;
+        }
+    }
+    let in_position_after_s = ls.now() - holding;
     let mut e = Vec::with_capacity(2000);
     let mut ended = "holding".to_string();
     for _ in 0..2000 {
@@ -1300,6 +1316,7 @@ fn ring_down(ls: &mut Lockstep) -> Result<Ring> {
         .filter(|w| (w[0] - mean).signum() != (w[1] - mean).signum())
         .count();
     Ok(Ring {
+        in_position_after_s,
         freq_hz: crossings as f64 / 2.0 / (n.max(1) as f64 * PERIOD_S),
         first_mrad: half(&e[..n.min(250)]),
         last_mrad: half(&e[n.saturating_sub(250)..]),
