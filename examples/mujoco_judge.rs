@@ -31,7 +31,6 @@
 //! plant script speaking docs/plant-protocol.md). docs/judge.md quotes it;
 //! `tests/mujoco/study.py` runs it over seeds and friction behaviours.
 
-use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Instant;
@@ -794,7 +793,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             // `--extra-flipped`: every other one with the wrist flipped (J4 + π, −J5, J6 + π)
             let flip = o.extra_flipped && extra.len() % 2 == 1;
             let near = if flip {
-                wrist_flipped(&reference)
+                Model::other_wrist_reference(&reference)
             } else {
                 reference
             };
@@ -1129,13 +1128,6 @@ fn novel_pose(nominal: &Model, rng: &mut Pcg64) -> (Frame, [f64; 6]) {
     }
 }
 
-/// The same tool pose with the other wrist: J4 + π (toward zero), −J5, J6 + π (toward
-/// zero), rad.
-fn wrist_flipped(q: &[f64; 6]) -> [f64; 6] {
-    let half = |a: f64| if a > 0.0 { a - PI } else { a + PI };
-    [q[0], q[1], q[2], half(q[3]), -q[4], half(q[5])]
-}
-
 /// `n` novel configurations (ids `H1`…) of [`novel_pose`].
 fn novel_configs(nominal: &Model, n: usize, rng: &mut Pcg64) -> Vec<(String, [f64; 6])> {
     (1..=n)
@@ -1263,6 +1255,19 @@ struct Ring {
     ended: String,
 }
 
+/// Runs the arm a cycle at a time until `done` says so of the daemon's status, it faults, or
+/// `secs` (s) have passed.
+fn run_until(ls: &mut Lockstep, secs: f64, done: fn(&Status) -> bool) -> Result<()> {
+    let end = ls.now() + secs;
+    loop {
+        let st = status(ls)?;
+        if done(&st) || st.state == State::Fault || ls.now() >= end {
+            return Ok(());
+        }
+        ls.run_for(PERIOD_S);
+    }
+}
+
 /// How long the ring-down waits after the move for the daemon's in position, s.
 const RING_WAIT_S: f64 = 10.0;
 
@@ -1272,22 +1277,11 @@ fn ring_down(ls: &mut Lockstep) -> Result<Ring> {
     let mut q = HOME;
     q[4] += 0.2;
     ask(ls, ApiRequest::MoveJoints { q })?;
-    let end = ls.now() + 30.0;
-    while status(ls)?.state != State::Holding && ls.now() < end {
-        ls.run_for(PERIOD_S);
-        if status(ls)?.state == State::Fault {
-            break;
-        }
-    }
+    run_until(ls, 30.0, |st| st.state == State::Holding)?;
     // from where `pa10 move --wait` would measure: in position (a stuck drive off its target
     // is broken away by the hold loop first, and each slip excites the link mode anew)
     let holding = ls.now();
-    while !status(ls)?.in_position && ls.now() < holding + RING_WAIT_S {
-        ls.run_for(PERIOD_S);
-        if status(ls)?.state == State::Fault {
-            break;
-        }
-    }
+    run_until(ls, RING_WAIT_S, |st| st.in_position)?;
     let in_position_after_s = ls.now() - holding;
     let mut e = Vec::with_capacity(2000);
     let mut ended = "holding".to_string();

@@ -121,13 +121,13 @@ pub fn wrist_coverage(model: &Model, data: &Dataset) -> Option<WristCoverage> {
     let none = crate::model::ExternalLoad::hung(0.0, &model.gravity());
     let mut seen = std::collections::BTreeSet::new();
     let mut counts = [0usize; 2];
+    let sigma = |q: &[f64; 6]| model.position_uncertainty(q, &model.static_torques(q, &none));
     let (mut own, mut twin) = (Vec::new(), Vec::new());
     for r in &data.rows {
         if !seen.insert(r.config_id.as_str()) {
             continue;
         }
         counts[usize::from(r.q[4] < 0.0)] += 1;
-        let sigma = |q: &[f64; 6]| model.position_uncertainty(q, &model.static_torques(q, &none));
         own.push(sigma(&r.q)?);
         if let Some(s) = model.other_wrist(&r.q).and_then(|t| sigma(&t)) {
             twin.push(s);

@@ -292,10 +292,18 @@ impl Model {
         if q[4] == 0.0 || !q.iter().all(|v| v.is_finite()) {
             return None;
         }
-        let half = |a: f64| if a > 0.0 { a - PI } else { a + PI };
-        let reference = [q[0], q[1], q[2], half(q[3]), -q[4], half(q[5])];
-        let t = self.ik_nearest(&self.fk(q), &reference).ok()?;
+        let t = self
+            .ik_nearest(&self.fk(q), &Self::other_wrist_reference(q))
+            .ok()?;
         (t[4] * q[4] < 0.0).then_some(t)
+    }
+
+    /// The ideal arm's other-wrist twin of `q` (rad): J4 and J6 moved by π toward zero, J5
+    /// negated — the reference [`Model::other_wrist`] solves from (an IK seed for the other
+    /// wrist).
+    pub fn other_wrist_reference(q: &[f64; 6]) -> [f64; 6] {
+        let half = |a: f64| if a > 0.0 { a - PI } else { a + PI };
+        [q[0], q[1], q[2], half(q[3]), -q[4], half(q[5])]
     }
 
     /// The solution nearest to `reference` (link angles, rad).
