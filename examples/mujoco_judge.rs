@@ -47,7 +47,9 @@ use pa10::discover::{DiscoverOptions, Found, discover};
 use pa10::model::{Frame, Model, NOMINAL_YAML, Torques, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
-use pa10::sim::plant::{FrictionModel, MAX_FRICTION_SCALE, PlantConfig, PlantKind};
+use pa10::sim::plant::{
+    FrictionModel, HiddenTransmission, MAX_FRICTION_SCALE, PlantConfig, PlantKind,
+};
 use pa10::sim::rig::{HOME, Lockstep, truth_for};
 use pa10::sim::servo::{ServoConfig, ServoSim};
 use rand::SeedableRng;
@@ -124,6 +126,31 @@ struct Opts {
     /// `--extra-flipped`: every other `--extra-configs` configuration reached with the other
     /// wrist (J4 + π, −J5, J6 + π): a campaign that sees both wrist branches.
     extra_flipped: bool,
+    /// `--hide-gear J:G`, `--hide-bearing J:A:PHI`: transmission effects the plant hides
+    /// (a gear ratio off by a relative G on joint J; an output bearing's once-per-revolution
+    /// error of A rad at phase PHI rad), for judging what `--discover` names.
+    hidden: Option<HiddenTransmission>,
+}
+
+/// Joint `J` (1…6) and the numbers after it of a `--hide-…` value `J:x[:y]`.
+fn hidden_joint(flag: &str, v: &str, numbers: usize) -> Result<(usize, Vec<f64>)> {
+    let parts: Vec<&str> = v.split(':').collect();
+    ensure!(
+        parts.len() == numbers + 1,
+        "{flag}: joint and {numbers} number(s) separated by ':', got {v}"
+    );
+    let j: usize = parts[0]
+        .parse()
+        .with_context(|| format!("{flag}: a joint 1…6, got {}", parts[0]))?;
+    ensure!((1..=6).contains(&j), "{flag}: a joint 1…6, got {j}");
+    let x = parts[1..]
+        .iter()
+        .map(|p| {
+            p.parse::<f64>()
+                .with_context(|| format!("{flag}: a number, got {p}"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    Ok((j - 1, x))
 }
 
 fn opts() -> Result<Opts> {
@@ -148,6 +175,7 @@ fn opts() -> Result<Opts> {
         extra_configs: 0,
         validation_poses: None,
         extra_flipped: false,
+        hidden: None,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -203,6 +231,14 @@ fn opts() -> Result<Opts> {
                     .parse()
                     .context("--hold-damping: a number")?;
             }
+            "--hide-gear" => {
+                let (j, x) = hidden_joint("--hide-gear", &value("--hide-gear")?, 1)?;
+                o.hidden.get_or_insert_with(Default::default).gear[j] = x[0];
+            }
+            "--hide-bearing" => {
+                let (j, x) = hidden_joint("--hide-bearing", &value("--hide-bearing")?, 2)?;
+                o.hidden.get_or_insert_with(Default::default).bearing[j] = [x[0], x[1]];
+            }
             "--trace" => o.trace = Some(PathBuf::from(value("--trace")?)),
             "--keep" => o.keep = Some(PathBuf::from(value("--keep")?)),
             "--extra-configs" => {
@@ -246,6 +282,9 @@ fn opts() -> Result<Opts> {
                 "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE, --keep DIR)"
             ),
         }
+    }
+    if let Some(h) = &o.hidden {
+        h.validate().map_err(|e| anyhow!("--hide-…: {e}"))?;
     }
     Ok(o)
 }
@@ -374,6 +413,9 @@ struct Outcome {
     #[serde(skip_serializing_if = "Option::is_none")]
     discovery: Option<DiscoverySummary>,
     seed: u64,
+    /// The transmission effects the plant hid (`--hide-gear`, `--hide-bearing`), if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    hidden: Option<HiddenTransmission>,
     calibration_rows: usize,
     validation_poses: usize,
     simulated_s: f64,
@@ -558,6 +600,7 @@ fn rig(settings: &Settings, o: &Opts) -> Result<Lockstep> {
         kind: PlantKind::Mujoco,
         friction: Some(o.friction),
         friction_model: o.friction_model,
+        hidden: o.hidden,
         ..PlantConfig::default()
     };
     if let Some(script) = std::env::var_os("PA10_PLANT") {
@@ -1107,6 +1150,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             elapsed_s: secs,
         }),
         seed: o.seed,
+        hidden: o.hidden,
         calibration_rows: data.rows.len(),
         validation_poses: targets.len(),
         simulated_s: ls.now(),

@@ -831,6 +831,21 @@ fn the_mujoco_config_checks_and_a_bad_plant_section_is_refused_by_key() {
             "command: []",
             "sim.plant.command",
         ),
+        (
+            "friction_model: stick",
+            "friction_model: stick\n    hidden: {gear: [0, 0, 0.5, 0, 0, 0]}",
+            "sim.plant.hidden",
+        ),
+        (
+            "friction_model: stick",
+            "friction_model: stick\n    hidden: {bearing: [[0, 0], [0.01, 0], [0, 0], [0, 0], [0, 0], [0, 0]]}",
+            "bearing[1]",
+        ),
+        (
+            "friction_model: stick",
+            "friction_model: stick\n    hidden: {gears: [0, 0, 0, 0, 0, 0]}",
+            "gears",
+        ),
     ] {
         assert!(text.contains(from), "{from}");
         std::fs::write(dir.join("bad.yaml"), text.replace(from, to)).unwrap();

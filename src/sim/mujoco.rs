@@ -22,7 +22,9 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
-use super::plant::{Drive, FrictionModel, MAX_FRICTION_SCALE, Plant, PlantConfig};
+use super::plant::{
+    Drive, FrictionModel, HiddenTransmission, MAX_FRICTION_SCALE, Plant, PlantConfig,
+};
 use crate::model::{Frame as Pose, frame_from_pose};
 
 /// Longest answer line accepted from the plant process, bytes.
@@ -51,6 +53,8 @@ pub struct MujocoOptions {
     pub tool: [f64; 3],
     /// Link angles the arm starts at rest at, rad.
     pub q0: [f64; 6],
+    /// Transmission effects the plant hides (sent only when present).
+    pub hidden: Option<HiddenTransmission>,
 }
 
 impl MujocoOptions {
@@ -65,6 +69,7 @@ impl MujocoOptions {
             friction_model: FrictionModel::Creep,
             tool: [0.0, 0.0, 0.35],
             q0,
+            hidden: None,
         }
     }
 
@@ -86,6 +91,7 @@ impl MujocoOptions {
         o.dir = c.dir.clone();
         o.friction = c.friction.unwrap_or(1.0);
         o.friction_model = c.friction_model;
+        o.hidden = c.hidden;
         o.tool = tool;
         o
     }
@@ -194,10 +200,15 @@ impl MujocoPlant {
             reference: [0.0; 6],
             failure: None,
         };
-        let reset = serde_json::json!({
+        let mut reset = serde_json::json!({
             "op": "reset", "q": opts.q0, "tool": opts.tool, "seed": opts.seed,
             "friction": opts.friction, "load_kg": 0.0, "friction_model": opts.friction_model,
         });
+        if let Some(h) = &opts.hidden {
+            h.validate()
+                .map_err(|e| MujocoError::Option(format!("hidden: {e}")))?;
+            reset["hidden"] = serde_json::json!(h);
+        }
         plant.state = plant.request(&reset)?;
         plant.step_s = match plant.state.dt {
             Some(dt) if dt > 0.0 && dt <= 0.01 => dt,

@@ -94,9 +94,64 @@ pub struct PlantConfig {
     /// `mujoco`: how the dry friction behaves at rest.
     #[serde(default)]
     pub friction_model: FrictionModel,
+    /// `mujoco`: transmission effects the plant hides from the daemon (none when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hidden: Option<HiddenTransmission>,
     /// Where the command runs (set from the configuration file's folder when it is read).
     #[serde(skip)]
     pub dir: Option<PathBuf>,
+}
+
+/// The largest hidden gear-ratio error [`HiddenTransmission`] accepts (relative).
+pub const MAX_HIDDEN_GEAR: f64 = 0.01;
+/// The largest hidden bearing amplitude [`HiddenTransmission`] accepts, rad.
+pub const MAX_HIDDEN_BEARING_RAD: f64 = 0.002;
+
+/// Transmission effects a plant hides between its rotors and the resolvers' reading (the plant
+/// protocol's `hidden`, `docs/plant-protocol.md`): the reading in link units is
+/// `θ_r = (1 + gear_j)·θ − A_j·sin(θ + φ_j)` for the rotor's angle θ — a gear ratio off by a
+/// relative `gear_j` and an output bearing's once-per-revolution error of amplitude `A_j`.
+/// For judging discovery on effects the daemon's model lacks; a real arm has them unasked.
+///
+/// ```yaml
+/// sim:
+///   plant:
+///     kind: mujoco
+///     hidden:
+///       gear: [0, 0, 0.0005, 0, 0, 0]          # J3's ratio 0.05 % off
+///       bearing: [[0, 0], [0.0002, 0.7], [0, 0], [0, 0], [0, 0], [0, 0]]  # J2: 0.2 mrad, φ 0.7 rad
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HiddenTransmission {
+    /// Per joint, the gear ratio's relative error (|g| ≤ [`MAX_HIDDEN_GEAR`]).
+    #[serde(default)]
+    pub gear: [f64; 6],
+    /// Per joint, the bearing error's amplitude A (rad, |A| ≤ [`MAX_HIDDEN_BEARING_RAD`]) and
+    /// phase φ (rad).
+    #[serde(default)]
+    pub bearing: [[f64; 2]; 6],
+}
+
+impl HiddenTransmission {
+    /// Checks every value: why it is refused.
+    pub fn validate(&self) -> Result<(), String> {
+        for (j, g) in self.gear.iter().enumerate() {
+            if !(g.is_finite() && g.abs() <= MAX_HIDDEN_GEAR) {
+                return Err(format!(
+                    "gear[{j}]: a relative error within ±{MAX_HIDDEN_GEAR}, got {g}"
+                ));
+            }
+        }
+        for (j, [a, phi]) in self.bearing.iter().enumerate() {
+            if !(a.is_finite() && a.abs() <= MAX_HIDDEN_BEARING_RAD && phi.is_finite()) {
+                return Err(format!(
+                    "bearing[{j}]: [amplitude within ±{MAX_HIDDEN_BEARING_RAD} rad, finite phase rad], got [{a}, {phi}]"
+                ));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl PlantConfig {
@@ -127,15 +182,19 @@ impl PlantConfig {
                 return Err(("command", "a word holds a NUL byte".into()));
             }
         }
+        if let Some(h) = &self.hidden {
+            h.validate().map_err(|e| ("hidden", e))?;
+        }
         if self.kind == PlantKind::Model
             && (self.command.is_some()
                 || self.friction.is_some()
                 || self.seed.is_some()
+                || self.hidden.is_some()
                 || self.friction_model != FrictionModel::Creep)
         {
             return Err((
                 "kind",
-                "command, seed, friction and friction_model are for `kind: mujoco` (the in-process model plant has no friction)".into(),
+                "command, seed, friction, friction_model and hidden are for `kind: mujoco` (the in-process model plant has no friction)".into(),
             ));
         }
         Ok(())

@@ -29,9 +29,16 @@ machining tolerances (a, d ±0.25 mm, α ±1 mrad, joint zeros ±0.5 mrad, Hayat
 J2-J3 ±1 mrad), link masses ±10 %, centres of mass ±10 mm, stiffness ±15 %, springs on
 J1/J4/J6 that the daemon's model calls rigid.
 
+Hidden transmission effects (optional, `hidden` in the reset; none by default): what the
+resolver on the motor shaft reads, in link units, is θ_r = (1 + g_j)·θ − A_j·sin(θ + φ_j) — a
+gear ratio off by a relative g_j (the daemon's link angle off by g·θ) and an output bearing's
+once-per-revolution error of amplitude A_j (rad); `motor` and `motor_speed` are that reading,
+and a commanded speed is in its units.
+
 Protocol (JSON lines on stdin, one JSON line answered on stdout per request):
   {"op": "reset", "q": [6] rad, "load_kg": m, "friction": 0..10 (Coulomb scale), "seed": n, "tool": [3] m,
-   "friction_model": "creep" | "stick"}
+   "friction_model": "creep" | "stick",
+   "hidden": {"gear": [6] relative (|g| <= 0.01), "bearing": [6] of [A rad (|A| <= 0.002), φ rad]}}
       the arm at rest at link angles q (motor angles and springs in equilibrium), the tool
       point (and the load) at `tool` in the flange frame; answers the state and "dt"
   {"op": "step", "dt": s, "speed": [6] rad/s, "brake": bool}
@@ -227,7 +234,7 @@ def strided(ix):
 
 
 class Plant:
-    def __init__(self, seed=1, friction=1.0, tool=(0.0, 0.0, 0.1), friction_model="creep"):
+    def __init__(self, seed=1, friction=1.0, tool=(0.0, 0.0, 0.1), friction_model="creep", hidden=None):
         if friction_model not in FRICTION_MODELS:
             raise ValueError(f"friction_model: one of {', '.join(FRICTION_MODELS)}, got {friction_model!r}")
         self.sticking = friction_model == "stick"
@@ -257,6 +264,14 @@ class Plant:
         self.held = None  # motor angles the brakes hold, or None (servo on)
         self.stuck = np.ones(6, dtype=bool)  # "stick": which drives are stuck
         self.anchor = np.zeros(6)  # "stick": where each stuck motor is pinned, rad
+        hidden = hidden or {}
+        self.gear = np.array(hidden.get("gear", [0.0] * 6), dtype=float)
+        bearing = np.array(hidden.get("bearing", [[0.0, 0.0]] * 6), dtype=float)
+        self.bearing_a, self.bearing_phi = bearing[:, 0], bearing[:, 1]
+
+    def reading_slope(self, theta):
+        """dθ_r/dθ of the resolvers' reading (1 without hidden transmission effects)."""
+        return 1.0 + self.gear - self.bearing_a * np.cos(theta + self.bearing_phi)
 
     def set_friction(self, scale):
         """Scales the drives' dry (Coulomb) friction; the viscous part always acts (it is also
@@ -338,7 +353,8 @@ class Plant:
         return self.state()
 
     def step(self, dt, speed, brake=False):
-        self.speed = np.asarray(speed, dtype=float)
+        # a speed in the reading's units, on the rotor (held for the step)
+        self.speed = np.asarray(speed, dtype=float) / self.reading_slope(self.data.qpos[self.mq])
         n = max(1, int(round(dt / DT)))
         d = self.data
         if brake and self.held is None:
@@ -381,15 +397,34 @@ class Plant:
         pos = d.site_xpos[self.tool].copy()
         q = np.zeros(4)
         mujoco.mju_mat2Quat(q, d.site_xmat[self.tool])
+        reading = (1.0 + self.gear) * theta - self.bearing_a * np.sin(theta + self.bearing_phi)
         return {
             "t": d.time,
-            "motor": list(theta),
-            "motor_speed": list(d.qvel[self.mv]),
+            "motor": list(reading),
+            "motor_speed": list(self.reading_slope(theta) * d.qvel[self.mv]),
             "link": list(theta + delta),
             "motor_torque": list(self.tau_m),
             "spring_torque": list(-self.spring(delta)),
             "tool": list(pos) + list(q),
         }
+
+
+def parse_hidden(h):
+    """The reset's `hidden` transmission effects, checked: {"gear": [6], "bearing": [6][2]}."""
+    if h is None:
+        return None
+    if not isinstance(h, dict) or set(h) - {"gear", "bearing"}:
+        raise ValueError("hidden: an object with `gear` and/or `bearing`")
+    gear = h.get("gear", [0.0] * 6)
+    if not (isinstance(gear, list) and len(gear) == 6 and all(
+            isinstance(g, (int, float)) and math.isfinite(g) and abs(g) <= 0.01 for g in gear)):
+        raise ValueError("hidden.gear: six relative ratio errors, each within ±0.01")
+    bearing = h.get("bearing", [[0.0, 0.0]] * 6)
+    if not (isinstance(bearing, list) and len(bearing) == 6 and all(
+            isinstance(b, list) and len(b) == 2 and all(isinstance(x, (int, float)) and math.isfinite(x) for x in b)
+            and abs(b[0]) <= 0.002 for b in bearing)):
+        raise ValueError("hidden.bearing: six [amplitude rad within ±0.002, phase rad]")
+    return {"gear": gear, "bearing": bearing}
 
 
 def serve():
@@ -412,7 +447,8 @@ def serve():
                 load_kg = float(r.get("load_kg", 0.0))
                 if not (0 <= load_kg <= 100):
                     raise ValueError("load_kg: 0..100 kg")
-                plant = Plant(int(r.get("seed", 1)), friction, tool, str(r.get("friction_model", "creep")))
+                hidden = parse_hidden(r.get("hidden"))
+                plant = Plant(int(r.get("seed", 1)), friction, tool, str(r.get("friction_model", "creep")), hidden)
                 out = plant.reset(q, load_kg)
                 out["dt"] = DT
             elif op == "step" and plant is not None:
@@ -472,6 +508,22 @@ def selftest():
                 s["motor_torque"][j] - s["spring_torque"][j] for j in (1, 2, 4)
             ],
         }
+    # hidden transmission effects: the reading against the rotor's angle, and a commanded
+    # speed followed in the reading's units
+    gear, (a, phi) = 1e-3, (2e-4, 0.5)
+    hidden = {"gear": [0, 0, gear, 0, 0, 0], "bearing": [[0, 0], [a, phi]] + [[0, 0]] * 4}
+    p = Plant(seed=3, friction=0.0, hidden=hidden)
+    s = p.reset(q)
+    theta = p.data.qpos[p.mq]
+    for _ in range(4):
+        r = p.step(0.25, [0, 0, 0.05, 0, 0, 0])
+    res["hidden"] = {
+        "gear_reading_rad": s["motor"][2] - theta[2],
+        "gear_expected_rad": gear * theta[2],
+        "bearing_reading_rad": s["motor"][1] - theta[1],
+        "bearing_expected_rad": -a * math.sin(theta[1] + phi),
+        "j3_reading_speed_rad_s": r["motor_speed"][2],
+    }
     print(json.dumps(res))
     return res
 
@@ -481,6 +533,14 @@ def check(res):
     bad = []
     viscous = VISCOUS[1] * 0.05
     expected = COULOMB[1] + viscous
+    h = res.pop("hidden", None)
+    if h is not None:
+        for what in ("gear", "bearing"):
+            if abs(h[f"{what}_reading_rad"] - h[f"{what}_expected_rad"]) > 1e-12:
+                bad.append(f"hidden {what}: the reading is off by {h[f'{what}_reading_rad']:.3g} rad, "
+                           f"expected {h[f'{what}_expected_rad']:.3g}")
+        if abs(h["j3_reading_speed_rad_s"] - 0.05) > 1e-3:
+            bad.append(f"hidden gear: J3 read {h['j3_reading_speed_rad_s']:.4g} rad/s for a command of 0.05")
     for key, r in res.items():
         if r["rest_drift_rad"] > 1e-9:
             bad.append(f"{key}: the arm drifts {r['rest_drift_rad']:.3g} rad from its equilibrium")

@@ -118,6 +118,14 @@ def named_text(f, truth):
     return f["label"] + " " + ", ".join(f"{k} {v:.3g}" for k, v in f["params"].items())
 
 
+def hidden_text(r):
+    """The transmission effects the judge had the plant hide (`--hide-gear`, `--hide-bearing`)."""
+    h = r.get("hidden") or {}
+    parts = [f"J{j + 1} gear {g:.3g}" for j, g in enumerate(h.get("gear", [])) if g]
+    parts += [f"J{j + 1} bearing {a:.3g} rad at {phi:.3g}" for j, (a, phi) in enumerate(h.get("bearing", [])) if a]
+    return f" (plant hid {', '.join(parts)})" if parts else ""
+
+
 def discovery_table(results):
     """Per run with --discover: calibrated and extended mean / floor per load, what was named."""
     rs = sorted((r for r in results if "failed" not in r and r.get("discovered") is not None),
@@ -142,7 +150,7 @@ def discovery_table(results):
         for f in r["discovered"]:
             if f["name"] == "joint_compliance_linear" and f.get("joint") == 4:
                 j4.append(f["params"]["compliance"] / truth[3] - 1)
-        named = "; ".join(named_text(f, truth) for f in r["discovered"]) or "nothing"
+        named = ("; ".join(named_text(f, truth) for f in r["discovered"]) or "nothing") + hidden_text(r)
         own = "–"
         if all(len(l.get("prediction_mean_mm", [])) == 3 for l in r["loads"]):
             pc = [l["prediction_mean_mm"][1] / fl for l in r["loads"]]
