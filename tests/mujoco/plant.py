@@ -268,6 +268,8 @@ class Plant:
         self.gear = np.array(hidden.get("gear", [0.0] * 6), dtype=float)
         bearing = np.array(hidden.get("bearing", [[0.0, 0.0]] * 6), dtype=float)
         self.bearing_a, self.bearing_phi = bearing[:, 0], bearing[:, 1]
+        # without hidden effects the reading is the rotor's angle: no per-request arithmetic
+        self.hidden = bool(self.gear.any() or self.bearing_a.any())
 
     def reading_slope(self, theta):
         """dθ_r/dθ of the resolvers' reading (1 without hidden transmission effects)."""
@@ -354,7 +356,9 @@ class Plant:
 
     def step(self, dt, speed, brake=False):
         # a speed in the reading's units, on the rotor (held for the step)
-        self.speed = np.asarray(speed, dtype=float) / self.reading_slope(self.data.qpos[self.mq])
+        self.speed = np.array(speed, dtype=float)
+        if self.hidden:
+            self.speed /= self.reading_slope(self.data.qpos[self.mq])
         n = max(1, int(round(dt / DT)))
         d = self.data
         if brake and self.held is None:
@@ -397,11 +401,14 @@ class Plant:
         pos = d.site_xpos[self.tool].copy()
         q = np.zeros(4)
         mujoco.mju_mat2Quat(q, d.site_xmat[self.tool])
-        reading = (1.0 + self.gear) * theta - self.bearing_a * np.sin(theta + self.bearing_phi)
+        reading, speed = theta, d.qvel[self.mv]
+        if self.hidden:
+            reading = (1.0 + self.gear) * theta - self.bearing_a * np.sin(theta + self.bearing_phi)
+            speed = self.reading_slope(theta) * speed
         return {
             "t": d.time,
             "motor": list(reading),
-            "motor_speed": list(self.reading_slope(theta) * d.qvel[self.mv]),
+            "motor_speed": list(speed),
             "link": list(theta + delta),
             "motor_torque": list(self.tau_m),
             "spring_torque": list(-self.spring(delta)),
