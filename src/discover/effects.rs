@@ -432,6 +432,15 @@ impl Slot {
         }
     }
 
+    /// The joint (zero-based) whose angle it acts on — a spring, a cubic stiffness or a
+    /// joint error, each adding to that joint's link angle per configuration — if any.
+    pub fn angle_joint(self) -> Option<usize> {
+        match self {
+            Slot::Compliance(j) | Slot::Kcub(j) | Slot::JointErr(j, _) => Some(j),
+            _ => None,
+        }
+    }
+
     /// Whether changing it changes the geometry model (DH frames or base frame).
     pub fn geometric(self) -> bool {
         matches!(self, Slot::Dep(_) | Slot::Base(_))

@@ -20,6 +20,7 @@ use rayon::prelude::*;
 
 use super::effects::Slot;
 use super::forward::{EffectState, Near, Obs, residual, residual_near};
+use crate::model::params::IDX_THETA;
 use crate::model::{Model, ModelError};
 
 /// One configuration's rows and whitening.
@@ -494,6 +495,16 @@ const MAX_STEP: f64 = 200.0;
 /// discovery handles identifiability the way `pa10 calibrate` does, and cannot run along
 /// them (from a missing effect, a linearised jump or an LM step would otherwise carry
 /// e.g. `da5 − da6` to a quarter of a metre).
+///
+/// A candidate that acts on a joint's angle (a gear-ratio error `s·q`, a spring `c·τ`, a
+/// periodic error) carries a constant part — its mean over the campaign — that the start
+/// model's offset of that joint absorbed when it was calibrated without it. Adding the
+/// candidate must give that part back to the offset; where the offset is in a held
+/// direction the hold would forbid it and bias the candidate (12-07: a J3 ratio of 2e-3
+/// hidden in MuJoCo's plant read 1.33e-3). So the hold is on the offset *plus* the
+/// candidate's constant part (its least-squares projection on the offset's own signature,
+/// [`Held::coupling`]): a candidate moves the joint's offset by exactly what it explains of
+/// it, and nothing else in a held direction moves.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Held {
     /// The model's own slots the directions are over.
@@ -507,18 +518,56 @@ pub(crate) struct Held {
     /// Precision of the hold (the largest eigenvalue of the normal matrix: as stiff as the
     /// best-determined direction), normalised units.
     pub precision: f64,
+    /// Candidate slots that act on a joint's angle whose offset is among `slots`: (the
+    /// candidate, the index of that offset in `slots`, the candidate's start value
+    /// normalised, `k`) — `k` the least-squares coefficient of the offset's signature in the
+    /// candidate's (normalised units), so the hold is on `offset + k·candidate`.
+    pub coupling: Vec<(Slot, usize, f64, f64)>,
 }
 
 impl Held {
     /// The held directions of `own` at `state`, from the whitened Jacobian of `p` with
-    /// unit dispersion.
-    pub fn at(p: &Problem, state: &EffectState, own: &[Slot]) -> Result<Self, ModelError> {
+    /// unit dispersion, and their coupling to the candidate slots `cands` that act on a
+    /// joint's angle (the others are ignored).
+    pub fn at(
+        p: &Problem,
+        state: &EffectState,
+        own: &[Slot],
+        cands: &[Slot],
+    ) -> Result<Self, ModelError> {
         let mut plain = p.clone();
         plain.dispersion = (1.0, 1.0);
-        let lin = linearise(&plain, state, own)?;
+        // (candidate, index of its joint's offset in `own`)
+        let coupled: Vec<(Slot, usize)> = cands
+            .iter()
+            .filter(|c| !own.contains(c))
+            .filter_map(|&c| {
+                let j = c.angle_joint()?;
+                let t = own.iter().position(|s| *s == Slot::Dep(IDX_THETA + j))?;
+                Some((c, t))
+            })
+            .collect();
+        let mut all = own.to_vec();
+        all.extend(coupled.iter().map(|(c, _)| *c));
+        let lin = linearise(&plain, state, &all)?;
         let rows = plain.white_rows(|b| b.train);
-        let cols: Vec<usize> = (0..own.len()).collect();
-        let (a, _) = normal_eq(&lin, &rows, &cols);
+        let cols: Vec<usize> = (0..all.len()).collect();
+        let (full, _) = normal_eq(&lin, &rows, &cols);
+        let n = own.len();
+        let coupling = coupled
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, t))| full[(*t, *t)] > 0.0)
+            .map(|(i, &(c, t))| {
+                (
+                    c,
+                    t,
+                    state.get(c) / c.scale(),
+                    full[(n + i, t)] / full[(t, t)],
+                )
+            })
+            .collect();
+        let a = full.view((0, 0), (n, n)).into_owned();
         let e = SymmetricEigen::new(a);
         let emax = e.eigenvalues.iter().cloned().fold(0.0, f64::max);
         let cut = 1.0 / (HELD_SE * HELD_SE);
@@ -540,6 +589,7 @@ impl Held {
             dirs,
             std_error,
             precision: emax.max(1.0),
+            coupling,
         })
     }
 
@@ -607,6 +657,13 @@ impl Prior {
             .iter()
             .map(|s| slots.iter().position(|x| x == s))
             .collect();
+        // the coupled candidates among `slots`: (column, offset's index in the held slots,
+        // start value, k)
+        let coupled: Vec<(usize, usize, f64, f64)> = h
+            .coupling
+            .iter()
+            .filter_map(|&(c, t, x0, k)| Some((slots.iter().position(|x| *x == c)?, t, x0, k)))
+            .collect();
         h.dirs
             .iter()
             .map(|w| {
@@ -618,9 +675,24 @@ impl Prior {
                         e[c] = w[k];
                     }
                 }
+                for &(col, t, x0, k) in &coupled {
+                    r += w[t] * k * (state.get(slots[col]) / slots[col].scale() - x0);
+                    e[col] += w[t] * k;
+                }
                 (e, r)
             })
             .collect()
+    }
+
+    /// The diagonal the held directions add to normal equations over `slots` (what
+    /// [`Prior::add_to`] adds there without the effects' prior; `state` only completes the
+    /// rows), normalised units.
+    pub fn held_diag(&self, slots: &[Slot], state: &EffectState) -> DVector<f64> {
+        let mut d = DVector::zeros(slots.len());
+        for (e, _) in self.held_rows(slots, state) {
+            d += e.component_mul(&e) * self.held.precision;
+        }
+        d
     }
 
     /// The prior's cost at `state` over `slots`.

@@ -151,8 +151,19 @@ pub fn discover(
     // Fit, re-estimate the noise model at the fit (it depends on the springs), fit again.
     let (mut p0, _) = problem(&lay, &state0, slots.len())?;
     // The combinations of the model's own parameters these data cannot determine are held
-    // at their start values in every fit below (see `fit::Held`).
-    let held = std::sync::Arc::new(fit::Held::at(&p0, &state0, &slots)?);
+    // at their start values in every fit below (see `fit::Held`), and a candidate on a
+    // joint's angle gives its constant part back to that joint's offset.
+    let mut angle_cands: Vec<Slot> = Vec::new();
+    for s in effects::candidates(&slots, &[])
+        .into_iter()
+        .chain(effects::generic_candidates(&slots))
+        .flat_map(|e| e.slots())
+    {
+        if s.angle_joint().is_some() && !angle_cands.contains(&s) {
+            angle_cands.push(s);
+        }
+    }
+    let held = std::sync::Arc::new(fit::Held::at(&p0, &state0, &slots, &angle_cands)?);
     let prior_of = |slots: &[Slot]| fit::Prior::new(slots, &base_slots, &held);
     let first = fit::fit_balanced(&mut p0, &state0, &slots, &prior_of(&slots))?;
     let complete::Settled {
@@ -220,6 +231,7 @@ pub fn discover(
         let lin = cur.lin.extended(&prob, &cur.state, &all[slots.len()..])?;
         let prior_all = prior_of(&all);
         let eqs = fold_eqs(&prob, &lin, &lay.folds).with_prior(&prior_all, &all, &cur.state);
+        let prior_diag = prior_all.held_diag(&all, &cur.state);
         let nb = slots.len();
         let a = &eqs.a_train;
         let g = &eqs.g_train;
@@ -243,7 +255,7 @@ pub fn discover(
                 scores.push((score, ci));
                 continue;
             }
-            let (ident, drop) = projected_drop(a, g, &a_bb_inv, &g_b, r);
+            let (ident, drop) = projected_drop(a, g, &a_bb_inv, &g_b, r, &prior_diag);
             let mut score = Score::untested(e, k, ident);
             if ident == 0 {
                 if steps.is_empty() {
@@ -502,7 +514,7 @@ pub fn discover(
             (leader.is_some_and(|l| l != ci) && t.mean > 0.0 && g2 <= g_prev) || (t.pass && rms_ok)
         };
         // The others a linearised forward selection takes with it (not its look-alikes).
-        let companions: Vec<usize> = select(a, g, nb, &ranges, &gate, SELECT_ROUNDS)
+        let companions: Vec<usize> = select(a, g, nb, &ranges, &gate, SELECT_ROUNDS, &prior_diag)
             .into_iter()
             .filter(|&o| {
                 o != ci

@@ -69,17 +69,20 @@ pub(super) fn test_dof(p: &Problem, raw: &[Vector6<f64>], noise: &NoiseReport) -
 /// The linearised drop of the whitened cost when the columns `r` join the first `nb` (whose
 /// normal matrix inverse is `a_bb_inv`), counted over the directions with more than
 /// [`IDENT_CUT`] of their column left after projecting out the first `nb`: (those
-/// directions, the drop).
+/// directions, the drop). `prior_diag`: the diagonal of the held directions' prior within
+/// `a` (a column's size is its data's, not the hold's: a candidate coupled to a held offset,
+/// `fit::Held::coupling`, carries the hold's precision on its diagonal).
 pub(super) fn projected_drop(
     a: &DMatrix<f64>,
     g: &DVector<f64>,
     a_bb_inv: &DMatrix<f64>,
     g_b: &DVector<f64>,
     r: std::ops::Range<usize>,
+    prior_diag: &DVector<f64>,
 ) -> (usize, f64) {
     let base: Vec<usize> = (0..a_bb_inv.nrows()).collect();
     let cols: Vec<usize> = r.collect();
-    drop_given(a, g, &base, a_bb_inv, g_b, &cols)
+    drop_given(a, g, &base, a_bb_inv, g_b, &cols, prior_diag)
 }
 
 fn sub(a: &DMatrix<f64>, rows: &[usize], cols: &[usize]) -> DMatrix<f64> {
@@ -99,15 +102,17 @@ fn drop_given(
     a_bb_inv: &DMatrix<f64>,
     g_b: &DVector<f64>,
     cols: &[usize],
+    prior_diag: &DVector<f64>,
 ) -> (usize, f64) {
     let k = cols.len();
     let a_cb = sub(a, cols, base);
     let a_cc = sub(a, cols, cols);
     let schur = &a_cc - &a_cb * a_bb_inv * a_cb.transpose();
     let h = subv(g, cols) - &a_cb * (a_bb_inv * g_b);
-    // Identifiable part: eigen-directions of the normalised Schur complement.
+    // Identifiable part: eigen-directions of the Schur complement normalised by the
+    // columns' data (the prior of a coupled hold taken off their diagonal).
     let dn = DVector::from_fn(k, |i, _| {
-        let v = a_cc[(i, i)];
+        let v = a_cc[(i, i)] - prior_diag[cols[i]];
         if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 }
     });
     let sn = DMatrix::from_fn(k, k, |i, j| schur[(i, j)] * dn[i] * dn[j]);
@@ -202,6 +207,7 @@ pub(super) fn select(
     ranges: &[std::ops::Range<usize>],
     gate: &Gate,
     rounds: usize,
+    prior_diag: &DVector<f64>,
 ) -> Vec<usize> {
     let mut base: Vec<usize> = (0..nb).collect();
     let mut chosen: Vec<usize> = Vec::new();
@@ -214,7 +220,7 @@ pub(super) fn select(
                 continue;
             }
             let cols: Vec<usize> = r.clone().collect();
-            let (ident, drop) = drop_given(a, g, &base, &inv, &g_b, &cols);
+            let (ident, drop) = drop_given(a, g, &base, &inv, &g_b, &cols, prior_diag);
             if let Some(bic) = gate.passes(ident, drop)
                 && best.is_none_or(|(_, b)| bic > b)
             {
@@ -291,6 +297,7 @@ pub(super) fn stability(
             mult
         })
         .collect();
+    let prior_diag = prior.0.diagonal();
     draws
         .par_iter()
         .map(|mult| {
@@ -302,7 +309,7 @@ pub(super) fn stability(
                     g += gb * *m;
                 }
             }
-            select(&a, &g, nb, ranges, gate, SELECT_ROUNDS)
+            select(&a, &g, nb, ranges, gate, SELECT_ROUNDS, &prior_diag)
         })
         .collect()
 }

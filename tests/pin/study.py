@@ -152,7 +152,9 @@ def main():
         if disc["gap_closed"] and ratio > 1.25:
             closed_above += 1
         labels = [e["label"] for e in disc["effects"]]
-        out.update(labels=labels, false=false, hits=hits, ratio=ratio, closed=disc["gap_closed"], seconds=t_disc)
+        # every named effect with its estimate (what the JSON of `pa10 discover` says of it),
+        # beside the generator's truth in "truth": how close an estimate came, not only its name
+        out.update(labels=labels, effects=disc["effects"], false=false, hits=hits, ratio=ratio, closed=disc["gap_closed"], seconds=t_disc)
         note = ""
         if not hidden:
             n["clean"] += 1
