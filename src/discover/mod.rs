@@ -189,7 +189,9 @@ pub fn discover(
     let raw_before = cur.lin.raw.clone();
     let mut steps = Vec::new();
     let mut found: Vec<(Effect, f64)> = Vec::new();
-    // Effects whose nonlinear refit did not improve the held-out prediction.
+    // Effects whose nonlinear refit did not improve the held-out prediction of the current
+    // model (tried again once an effect joins: a spring judged while a larger effect was
+    // still missing may fail the held-out RMS on the misfit that effect leaves, 12-07).
     let mut rejected: Vec<Effect> = Vec::new();
     // What a free base frame absorbs exactly is not identifiable by construction (scoring
     // it numerically would only measure the curvature of the rotation group).
@@ -686,6 +688,7 @@ pub fn discover(
         found.push((e, gap - g2));
         gap = g2;
         go = suspect(&lof, &noise);
+        rejected.clear();
     }
     let settled = complete::Settled {
         prob,
