@@ -447,6 +447,22 @@ impl Slot {
     }
 }
 
+/// The slots of every candidate, library or generic, that acts on a joint's angle
+/// ([`Slot::angle_joint`]), once each, for a model whose fitted slots are `fitted`.
+pub fn angle_candidate_slots(fitted: &[Slot]) -> Vec<Slot> {
+    let mut out: Vec<Slot> = Vec::new();
+    for s in candidates(fitted, &[])
+        .into_iter()
+        .chain(generic_candidates(fitted))
+        .flat_map(|e| e.slots())
+    {
+        if s.angle_joint().is_some() && !out.contains(&s) {
+            out.push(s);
+        }
+    }
+    out
+}
+
 /// Every candidate effect for a model whose fitted slots are `fitted` (effects already in
 /// the model are not candidates). `geom_fixed` lists departures the model keeps fixed that
 /// the data could see.

@@ -153,16 +153,7 @@ pub fn discover(
     // The combinations of the model's own parameters these data cannot determine are held
     // at their start values in every fit below (see `fit::Held`), and a candidate on a
     // joint's angle gives its constant part back to that joint's offset.
-    let mut angle_cands: Vec<Slot> = Vec::new();
-    for s in effects::candidates(&slots, &[])
-        .into_iter()
-        .chain(effects::generic_candidates(&slots))
-        .flat_map(|e| e.slots())
-    {
-        if s.angle_joint().is_some() && !angle_cands.contains(&s) {
-            angle_cands.push(s);
-        }
-    }
+    let angle_cands = effects::angle_candidate_slots(&slots);
     let held = std::sync::Arc::new(fit::Held::at(&p0, &state0, &slots, &angle_cands)?);
     let prior_of = |slots: &[Slot]| fit::Prior::new(slots, &base_slots, &held);
     let first = fit::fit_balanced(&mut p0, &state0, &slots, &prior_of(&slots))?;
