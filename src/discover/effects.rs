@@ -432,9 +432,11 @@ impl Slot {
         }
     }
 
-    /// The joint (zero-based) whose angle it acts on — a spring, a cubic stiffness or a
-    /// joint error, each adding to that joint's link angle per configuration — if any.
-    pub fn angle_joint(self) -> Option<usize> {
+    /// The joint (zero-based) whose link angle it adds to — a spring, a cubic stiffness or a
+    /// joint error, per configuration — if any. (Not [`Effect::angle_joint`], the joint whose
+    /// angle an effect is a function of: a spring adds to its link angle but is a function of
+    /// the torque.)
+    pub fn link_angle_joint(self) -> Option<usize> {
         match self {
             Slot::Compliance(j) | Slot::Kcub(j) | Slot::JointErr(j, _) => Some(j),
             _ => None,
@@ -448,7 +450,7 @@ impl Slot {
 }
 
 /// The slots of every candidate, library or generic, that acts on a joint's angle
-/// ([`Slot::angle_joint`]), once each, for a model whose fitted slots are `fitted`.
+/// ([`Slot::link_angle_joint`]), once each, for a model whose fitted slots are `fitted`.
 pub fn angle_candidate_slots(fitted: &[Slot]) -> Vec<Slot> {
     let mut out: Vec<Slot> = Vec::new();
     for s in candidates(fitted, &[])
@@ -456,7 +458,7 @@ pub fn angle_candidate_slots(fitted: &[Slot]) -> Vec<Slot> {
         .chain(generic_candidates(fitted))
         .flat_map(|e| e.slots())
     {
-        if s.angle_joint().is_some() && !out.contains(&s) {
+        if s.link_angle_joint().is_some() && !out.contains(&s) {
             out.push(s);
         }
     }

@@ -542,7 +542,7 @@ impl Held {
             .iter()
             .filter(|c| !own.contains(c))
             .filter_map(|&c| {
-                let j = c.angle_joint()?;
+                let j = c.link_angle_joint()?;
                 let t = own.iter().position(|s| *s == Slot::Dep(IDX_THETA + j))?;
                 Some((c, t))
             })
