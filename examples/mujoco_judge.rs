@@ -130,6 +130,10 @@ struct Opts {
     /// (a gear ratio off by a relative G on joint J; an output bearing's once-per-revolution
     /// error of A rad at phase PHI rad), for judging what `--discover` names.
     hidden: Option<HiddenTransmission>,
+    /// `--exact-resolvers`: the plant's resolvers without their repeatable error (a
+    /// diagnostic: what the loop does when the only error left is the instrument's and the
+    /// servo's; the floor quoted stays the specified resolvers').
+    exact_resolvers: bool,
 }
 
 /// Joint `J` (1…6) and the numbers after it of a `--hide-…` value `J:x[:y]`.
@@ -176,6 +180,7 @@ fn opts() -> Result<Opts> {
         validation_poses: None,
         extra_flipped: false,
         hidden: None,
+        exact_resolvers: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -184,6 +189,7 @@ fn opts() -> Result<Opts> {
             "--json" => o.json = true,
             "--quick" => o.quick = true,
             "--extra-flipped" => o.extra_flipped = true,
+            "--exact-resolvers" => o.exact_resolvers = true,
             "--check" => o.check = true,
             "--identify" => o.identify = true,
             "--discover" => o.discover = true,
@@ -279,7 +285,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE, --keep DIR)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE, --keep DIR, --extra-configs N, --extra-flipped, --validation-poses N, --hide-gear J:G, --hide-bearing J:A:PHI, --exact-resolvers)"
             ),
         }
     }
@@ -416,6 +422,9 @@ struct Outcome {
     /// The transmission effects the plant hid (`--hide-gear`, `--hide-bearing`), if any.
     #[serde(skip_serializing_if = "Option::is_none")]
     hidden: Option<HiddenTransmission>,
+    /// `--exact-resolvers`: the plant's resolvers had no repeatable error (a diagnostic run).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    exact_resolvers: bool,
     calibration_rows: usize,
     validation_poses: usize,
     simulated_s: f64,
@@ -596,6 +605,11 @@ fn settings(dir: &Path, o: &Opts) -> Result<Settings> {
 /// The daemon's core with the simulated controller driving the MuJoCo plant, ready.
 fn rig(settings: &Settings, o: &Opts) -> Result<Lockstep> {
     let (truth, seed) = truth_for(settings)?;
+    let truth = if o.exact_resolvers {
+        truth.with_exact_resolvers()
+    } else {
+        truth
+    };
     let mut plant = PlantConfig {
         kind: PlantKind::Mujoco,
         friction: Some(o.friction),
@@ -1151,6 +1165,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         }),
         seed: o.seed,
         hidden: o.hidden,
+        exact_resolvers: o.exact_resolvers,
         calibration_rows: data.rows.len(),
         validation_poses: targets.len(),
         simulated_s: ls.now(),
@@ -1597,6 +1612,11 @@ fn print(o: &Outcome) {
         o.simulated_s,
         o.elapsed_s
     );
+    if o.exact_resolvers {
+        println!(
+            "Exact resolvers (--exact-resolvers): no repeatable resolver error in the plant; the floor quoted is the specified resolvers'."
+        );
+    }
     println!(
         "{} of {} settles ended in position (the rest at the 5 s limit).",
         o.settles_in_position[0], o.settles_in_position[1]
