@@ -426,8 +426,11 @@ impl Score {
 }
 
 /// The held-out comparison of two models over held-out configurations (`d`: per
-/// configuration cost drop): a one-sided paired t-test and a Wilcoxon signed-rank test,
-/// each at α/2 (Bonferroni), and a positive mean gain.
+/// configuration cost drop): a one-sided paired t-test with a positive mean gain, or a
+/// Wilcoxon signed-rank test with a positive median gain, each at α/2 (Bonferroni). The
+/// rank path asks for the median, not the mean: a few configurations that lose heavily
+/// (a sticking run's held-out set, docs/judge.md §9) must not veto a gain every other
+/// configuration shows, which is what the rank test is there for.
 pub(super) struct Paired {
     pub(super) mean: f64,
     pub(super) t: f64,
@@ -454,13 +457,22 @@ impl Paired {
         // Ranks cannot be fooled by a few heavy-tailed per-configuration gains, and use
         // their sizes where a sign test would count only their signs.
         let rank_p = stats::signed_rank_test(d);
+        let median = {
+            let mut v = d.to_vec();
+            v.sort_by(f64::total_cmp);
+            match v.len() {
+                0 => 0.0,
+                k if k % 2 == 1 => v[k / 2],
+                k => 0.5 * (v[k / 2 - 1] + v[k / 2]),
+            }
+        };
         Self {
             mean,
             t,
             t_crit,
             better,
             rank_p,
-            pass: mean > 0.0 && (t > t_crit || rank_p < 0.5 * alpha),
+            pass: (mean > 0.0 && t > t_crit) || (median > 0.0 && rank_p < 0.5 * alpha),
             n: d.len(),
         }
     }
@@ -648,6 +660,23 @@ mod tests {
         );
         assert_eq!(k, 1);
         assert!(why.unwrap().contains("fewer parameters (1 against 8)"));
+    }
+
+    /// A few held-out configurations that lose heavily do not veto a gain the others show
+    /// consistently (stick seed 7 of docs/judge.md §9: three of 49 lose χ² 68–199, the mean
+    /// is negative); a consistent loss with a few large gains passes neither test.
+    #[test]
+    fn a_few_heavy_losses_do_not_veto_a_consistent_gain() {
+        let mut d: Vec<f64> = (0..46).map(|i| 1.0 + 0.2 * i as f64).collect();
+        d.extend([-90.0, -200.0, -70.0]);
+        let p = Paired::new(&d, 0.01);
+        assert!(p.mean < 0.0 && p.t < 0.0, "mean {} t {}", p.mean, p.t);
+        assert!(p.pass, "rank p {:.1e}", p.rank_p);
+        let e: Vec<f64> = d.iter().map(|x| -x).collect();
+        let q = Paired::new(&e, 0.01);
+        assert!(q.mean > 0.0 && !q.pass, "t {} rank p {:.1e}", q.t, q.rank_p);
+        // no gain at all passes nothing
+        assert!(!Paired::new(&[0.0; 10], 0.01).pass);
     }
 
     /// The signed-rank test sees a consistent gain that a sign test misses: 14 of 20
