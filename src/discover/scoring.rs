@@ -457,15 +457,7 @@ impl Paired {
         // Ranks cannot be fooled by a few heavy-tailed per-configuration gains, and use
         // their sizes where a sign test would count only their signs.
         let rank_p = stats::signed_rank_test(d);
-        let median = {
-            let mut v = d.to_vec();
-            v.sort_by(f64::total_cmp);
-            match v.len() {
-                0 => 0.0,
-                k if k % 2 == 1 => v[k / 2],
-                k => 0.5 * (v[k / 2 - 1] + v[k / 2]),
-            }
-        };
+        let median = stats::median(&mut d.to_vec()).unwrap_or(0.0);
         Self {
             mean,
             t,
