@@ -737,6 +737,7 @@ pub fn discover(
         max_effects: opts.max_effects,
         lack_of_fit_p: lof.p_value,
         alpha: opts.alpha,
+        strata_p: [lof.between.p_value, lof.within.p_value],
         gap_mm: gap,
         floor_mm: floor,
         generic,

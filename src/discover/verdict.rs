@@ -13,6 +13,9 @@ pub(super) struct Ending<'a> {
     /// The final lack of fit's p-value, and the significance level.
     pub(super) lack_of_fit_p: f64,
     pub(super) alpha: f64,
+    /// The final lack of fit's p-values between and within configurations (each tested at
+    /// half the level: the combined p is twice the smaller).
+    pub(super) strata_p: [f64; 2],
     /// Held-out RMS position error and the noise floor there, mm.
     pub(super) gap_mm: f64,
     pub(super) floor_mm: f64,
@@ -69,6 +72,8 @@ pub(super) fn conclude(e: &Ending) -> (Vec<String>, bool, String) {
                 "the lack of fit is still significant after the effect budget ({}) was spent",
                 e.max_effects
             )
+        } else if e.generic && e.strata_p[0] >= e.alpha / 2.0 && e.strata_p[1] < e.alpha / 2.0 {
+            "the lack of fit is still significant, but only within configurations (between configurations the model fits): how the readings change with the load at one configuration is not what the model says — the torques it was given (a drive's friction held at rest in the currents), readings taken before the arm was still, or a load-dependent effect that neither the library nor the generic dictionary holds".to_string()
         } else if e.generic {
             "the lack of fit is still significant and neither the library nor the generic dictionary has a term that passes every test: something is missing that this tool cannot name".to_string()
         } else {
@@ -89,6 +94,7 @@ mod tests {
             max_effects: 8,
             lack_of_fit_p: p,
             alpha: 0.01,
+            strata_p: [p, p],
             gap_mm: gap,
             floor_mm: 0.2,
             generic: true,
@@ -111,6 +117,22 @@ mod tests {
         assert!(!closed && v.contains("1.30× the noise floor"), "{v}");
         let (_, closed, v) = conclude(&ending(1e-6, 0.2, None));
         assert!(!closed && v.contains("cannot name"), "{v}");
+        // the misfit only between the loads of a configuration: said so, not "cannot name"
+        let within_only = Ending {
+            strata_p: [0.3, 5e-7],
+            ..ending(1e-6, 0.2, None)
+        };
+        let (_, closed, v) = conclude(&within_only);
+        assert!(!closed && v.contains("only within configurations"), "{v}");
+        assert!(!v.contains("cannot name"), "{v}");
+        // between configurations too (or only there): "cannot name" stays
+        for strata_p in [[1e-4, 1e-4], [1e-6, 0.3]] {
+            let (_, _, v) = conclude(&Ending {
+                strata_p,
+                ..ending(1e-6, 0.2, None)
+            });
+            assert!(v.contains("cannot name"), "{strata_p:?}: {v}");
+        }
         let rep = Interval {
             value: 2.0 * crate::accuracy::ARCMIN,
             lo: 1.5 * crate::accuracy::ARCMIN,

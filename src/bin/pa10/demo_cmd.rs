@@ -24,7 +24,7 @@ use rand_pcg::Pcg64;
 use serde::Serialize;
 
 use crate::client_cmd::{Api, AsSession, Simulated, checked};
-use crate::collect_cmd::{move_wait, sample, wait_still};
+use crate::collect_cmd::{TOOL_STILL_MAX_S, move_wait, sample, wait_still, wait_tool_still};
 
 /// Arguments of `pa10 demo`.
 #[derive(Debug, Args)]
@@ -114,27 +114,11 @@ fn config_text(dir: &Path, seed: u64) -> String {
         .replace("log_level: info", "log_level: warn")
 }
 
-/// Longest wait for the tool to stop on a configured plant, s: a loaded arm whose drives
-/// stick rings for seconds (docs/judge.md §8); the instrument waits for the tool, as a lab's.
-const TOOL_STILL_MAX_S: f64 = 5.0;
-
-/// Waits for the resolvers ([`wait_still`]) and then, as the instrument does, for the tool:
-/// its true position moving ≤ 1 µm over 10 ms three polls running, at most `tool_max` s.
+/// Waits for the resolvers ([`wait_still`]) and then, as the instrument does, for the tool
+/// ([`wait_tool_still`], at most `tool_max` s).
 fn settle(api: &mut Simulated, tool_max: f64) -> Result<()> {
     wait_still(api, SETTLE_MIN, SETTLE_MAX)?;
-    let t = api.clock_s();
-    let mut last = api.0.servo.true_tool_pose().translation.vector;
-    let mut still = 0;
-    while still < 3 && api.clock_s() - t < tool_max {
-        api.pause(Duration::from_millis(10));
-        let now = api.0.servo.true_tool_pose().translation.vector;
-        still = if (now - last).norm() <= 1e-6 {
-            still + 1
-        } else {
-            0
-        };
-        last = now;
-    }
+    wait_tool_still(api, tool_max);
     Ok(())
 }
 
