@@ -735,9 +735,8 @@ pub fn discover(
     let (findings, gap_closed, verdict) = verdict::conclude(&verdict::Ending {
         found: found.len(),
         max_effects: opts.max_effects,
-        lack_of_fit_p: lof.p_value,
+        lack_of_fit: lof,
         alpha: opts.alpha,
-        strata_p: [lof.between.p_value, lof.within.p_value],
         gap_mm: gap,
         floor_mm: floor,
         generic,

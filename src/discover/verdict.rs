@@ -2,6 +2,7 @@
 //! resolver's specification makes, whether the gap counts as closed, and the one plain
 //! sentence that says so and why. A pure function of the final numbers.
 
+use super::LackOfFit;
 use crate::noise::Interval;
 
 /// What the verdict is made from.
@@ -10,12 +11,10 @@ pub(super) struct Ending<'a> {
     pub(super) found: usize,
     /// The effect budget (`--max-effects`).
     pub(super) max_effects: usize,
-    /// The final lack of fit's p-value, and the significance level.
-    pub(super) lack_of_fit_p: f64,
+    /// The final lack of fit (its combined p, and each stratum's, tested at half the
+    /// level), and the significance level.
+    pub(super) lack_of_fit: LackOfFit,
     pub(super) alpha: f64,
-    /// The final lack of fit's p-values between and within configurations (each tested at
-    /// half the level: the combined p is twice the smaller).
-    pub(super) strata_p: [f64; 2],
     /// Held-out RMS position error and the noise floor there, mm.
     pub(super) gap_mm: f64,
     pub(super) floor_mm: f64,
@@ -48,7 +47,8 @@ pub(super) fn conclude(e: &Ending) -> (Vec<String>, bool, String) {
         })
         .collect();
     let ratio = e.gap_mm / e.floor_mm;
-    let fits = e.lack_of_fit_p >= e.alpha;
+    let lof = &e.lack_of_fit;
+    let fits = lof.p_value >= e.alpha;
     let within_floor = e.gap_mm <= super::GAP_CLOSED * e.floor_mm;
     // Still there at the final model, the excess keeps the gap open.
     let gap_closed = fits && within_floor && e.excess[1].1.is_none();
@@ -72,7 +72,10 @@ pub(super) fn conclude(e: &Ending) -> (Vec<String>, bool, String) {
                 "the lack of fit is still significant after the effect budget ({}) was spent",
                 e.max_effects
             )
-        } else if e.generic && e.strata_p[0] >= e.alpha / 2.0 && e.strata_p[1] < e.alpha / 2.0 {
+        } else if e.generic
+            && lof.between.p_value >= e.alpha / 2.0
+            && lof.within.p_value < e.alpha / 2.0
+        {
             "the lack of fit is still significant, but only within configurations (between configurations the model fits): how the readings change with the load at one configuration is not what the model says — the torques it was given (a drive's friction held at rest in the currents), readings taken before the arm was still, or a load-dependent effect that neither the library nor the generic dictionary holds".to_string()
         } else if e.generic {
             "the lack of fit is still significant and neither the library nor the generic dictionary has a term that passes every test: something is missing that this tool cannot name".to_string()
@@ -88,13 +91,28 @@ pub(super) fn conclude(e: &Ending) -> (Vec<String>, bool, String) {
 mod tests {
     use super::*;
 
+    /// A lack of fit with these p-values between and within configurations, combined as
+    /// `scoring::lack_of_fit` combines them (twice the smaller).
+    fn lof([between, within]: [f64; 2]) -> LackOfFit {
+        let stratum = |p_value| crate::discover::Stratum {
+            chi2: 0.0,
+            dof: 1.0,
+            ratio: 0.0,
+            p_value,
+        };
+        LackOfFit {
+            between: stratum(between),
+            within: stratum(within),
+            p_value: (2.0 * between.min(within)).min(1.0),
+        }
+    }
+
     fn ending(p: f64, gap: f64, excess_end: Option<Interval>) -> Ending<'static> {
         Ending {
             found: 2,
             max_effects: 8,
-            lack_of_fit_p: p,
+            lack_of_fit: lof([p, p]),
             alpha: 0.01,
-            strata_p: [p, p],
             gap_mm: gap,
             floor_mm: 0.2,
             generic: true,
@@ -119,7 +137,7 @@ mod tests {
         assert!(!closed && v.contains("cannot name"), "{v}");
         // the misfit only between the loads of a configuration: said so, not "cannot name"
         let within_only = Ending {
-            strata_p: [0.3, 5e-7],
+            lack_of_fit: lof([0.3, 5e-7]),
             ..ending(1e-6, 0.2, None)
         };
         let (_, closed, v) = conclude(&within_only);
@@ -128,7 +146,7 @@ mod tests {
         // between configurations too (or only there): "cannot name" stays
         for strata_p in [[1e-4, 1e-4], [1e-6, 0.3]] {
             let (_, _, v) = conclude(&Ending {
-                strata_p,
+                lack_of_fit: lof(strata_p),
                 ..ending(1e-6, 0.2, None)
             });
             assert!(v.contains("cannot name"), "{strata_p:?}: {v}");
