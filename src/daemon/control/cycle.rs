@@ -191,8 +191,9 @@ impl Controller {
     /// Step 5: the position loop on the motor side, `speed = q̇_setpoint + K·(target − q_motor)`
     /// clamped to the speed limits (rad/s); holding, an error within the joint's holding band
     /// (`hold_deadband`, widened by the hunting guard: `hold.rs`) counts as zero and
-    /// `hold_damping` × the resolvers' motor speed is taken off (a drive breaking away from
-    /// sticking is braked at once instead of slipping past the target). After the
+    /// `hold_damping` × the resolvers' motor speed is taken off, more on a slip's speed
+    /// (`hold::hold_brake`: a drive breaking away from sticking is braked at once instead of
+    /// slipping past the target). After the
     /// following-error and joint-limit checks (the link angle estimated as the measured motor
     /// angle less the compensation). Returns the speeds and those link angles (rad).
     pub(super) fn position_loop(
@@ -236,7 +237,7 @@ impl Controller {
                 e
             };
             let damping = if holding {
-                self.p.hold_damping * self.motor_speed[j]
+                super::hold::hold_brake(self.p.hold_damping, self.motor_speed[j])
             } else {
                 0.0
             };
@@ -455,7 +456,10 @@ mod tests {
                 .expect("fresh feedback");
         }
         let (speeds, _) = c.position_loop(&s, &s.q_motor).expect("within limits");
-        assert!((speeds[1] + 2.0 * 0.05).abs() < 1e-3, "{}", speeds[1]);
+        // 2 × 0.05, and SLIP_DAMPING on its excess over the slip speed
+        let want = super::super::hold::hold_brake(2.0, 0.05);
+        assert!((want - 0.1 - 2.0 * 0.04).abs() < 1e-12);
+        assert!((speeds[1] + want).abs() < 1e-3, "{}", speeds[1]);
         assert_eq!(speeds[0], 0.0);
         // moving, no damping term
         let mut q = Q0;
@@ -569,32 +573,67 @@ mod tests {
         );
     }
 
-    /// A sticking drive on J6 (MuJoCo's `stick` plant's in one joint, link-side units): a PI
-    /// speed loop, static friction 1.6 × Coulomb, rotor 0.02 kg·m². Its slip after breakaway
-    /// (≈ 0.6·Fc / Ki ≈ 3 mrad) is far wider than twice a 0.1 mrad band.
-    struct StickyJ6 {
+    /// A sticking drive's constants (MuJoCo's `stick` plant's, link-side units): its PI speed
+    /// loop's gains (N·m·s/rad, N·m/rad), Coulomb and static friction (N·m), rotor (kg·m²) and
+    /// viscous drag (N·m·s/rad).
+    struct Drive {
+        kp: f64,
+        ki: f64,
+        fc: f64,
+        fs: f64,
+        j: f64,
+        b: f64,
+    }
+
+    /// MuJoCo's sticking J6 at friction ×1: its slip after breakaway (≈ 0.6·Fc / Ki ≈ 3 mrad)
+    /// is far wider than twice a 0.1 mrad band.
+    const J6: Drive = Drive {
+        kp: 8.0,
+        ki: 160.0,
+        fc: 1.8,
+        fs: 1.6 * 1.8,
+        j: 0.02,
+        b: 0.3,
+    };
+
+    /// MuJoCo's sticking J6 at friction ×2: braked beyond 1 × its speed on its slips, it still
+    /// slips past a 0.1 mrad band both ways.
+    const J6_X2: Drive = Drive {
+        fc: 2.0 * J6.fc,
+        fs: 2.0 * J6.fs,
+        ..J6
+    };
+
+    /// MuJoCo's sticking J2 at friction ×2 (cold grease, a worn drive): Coulomb 54 N·m.
+    const J2_X2: Drive = Drive {
+        kp: 400.0,
+        ki: 8000.0,
+        fc: 54.0,
+        fs: 1.6 * 54.0,
+        j: 1.2,
+        b: 8.0,
+    };
+
+    /// A [`Drive`] in motion or stuck: it sticks when its speed crosses zero with the speed
+    /// loop's torque within the static level, and breaks away when the torque exceeds it.
+    struct Sticky {
+        d: Drive,
         q: f64,
         w: f64,
         integral: f64,
         stuck: bool,
     }
 
-    impl StickyJ6 {
-        const KP: f64 = 8.0;
-        const KI: f64 = 160.0;
-        const FC: f64 = 1.8;
-        const FS: f64 = 1.6 * 1.8;
-        const J: f64 = 0.02;
-        const B: f64 = 0.3;
-
+    impl Sticky {
         fn advance(&mut self, speed: f64, dt: f64) {
+            let d = &self.d;
             let h = dt / 20.0;
             for _ in 0..20 {
                 let err = speed - self.w;
                 self.integral += err * h;
-                let tau = Self::KP * err + Self::KI * self.integral;
+                let tau = d.kp * err + d.ki * self.integral;
                 if self.stuck {
-                    if tau.abs() <= Self::FS {
+                    if tau.abs() <= d.fs {
                         continue;
                     }
                     self.stuck = false;
@@ -604,10 +643,10 @@ mod tests {
                 } else {
                     tau.signum()
                 };
-                let w = self.w + h * (tau - Self::FC * dir - Self::B * self.w) / Self::J;
+                let w = self.w + h * (tau - d.fc * dir - d.b * self.w) / d.j;
                 if w * self.w < 0.0 || (self.w == 0.0 && w * dir < 0.0) {
                     self.w = 0.0;
-                    self.stuck = tau.abs() <= Self::FS;
+                    self.stuck = tau.abs() <= d.fs;
                 } else {
                     self.w = w;
                 }
@@ -616,7 +655,7 @@ mod tests {
         }
     }
 
-    /// What [`StickyJ6`] did under the loop for 20 s from 0.78 mrad off its target, stuck.
+    /// What a [`Sticky`] drive did under the loop for 30 s from stuck off its target.
     struct StickyRun {
         /// How often the error crossed from one side of the 0.1 mrad band to the other.
         sides: usize,
@@ -629,31 +668,34 @@ mod tests {
         accepted_rad: f64,
     }
 
-    /// Runs [`StickyJ6`] as the arm's J6 under the loop (deadband 0.1 mrad, damping 1), the
-    /// tool at `tool` (flange frame, m).
-    fn sticky_j6(tool: [f64; 3]) -> StickyRun {
+    /// Runs drive `d` as the arm's joint `j` (0-based) under the loop (deadband 0.1 mrad,
+    /// `hold_damping` `damping`), stuck `offset` rad past its target, the tool at `tool`
+    /// (flange frame, m).
+    fn sticky(j: usize, d: Drive, damping: f64, offset: f64, tool: [f64; 3]) -> StickyRun {
         let mut p = params();
         p.hold_deadband = 1e-4;
-        p.hold_damping = 1.0;
+        p.hold_damping = damping;
         let model = Model::nominal()
             .with_tool(&crate::model::frame_from_pose(tool, [1.0, 0.0, 0.0, 0.0]))
             .expect("a tool");
         let mut c = Controller::new(model, p, &state(Q0, [0.0; 6], 0.0));
-        let target = Q0[5];
-        let mut drive = StickyJ6 {
-            q: target + 7.8e-4,
+        let mut drive = Sticky {
+            d,
+            q: Q0[j] + offset,
             w: 0.0,
             integral: 0.0,
             stuck: true,
         };
         let (mut sides, mut last_side, mut in_position_at) = (0, 0.0, None);
         let (mut moved, mut lost) = (0.0f64, 0);
-        for k in 1..=10_000 {
+        // the first reading 0.1 s after the controller's: the resolvers' jump to the drive's
+        // offset is not a speed (a gap of 0.1 s is not differentiated)
+        for k in 1..=15_000 {
             let t = k as f64 * PERIOD;
             let mut q = Q0;
-            q[5] = drive.q;
-            let speeds = c.step(t, Some(&state(q, [0.0; 6], t)));
-            let e = c.output().target[5] - drive.q;
+            q[j] = drive.q;
+            let speeds = c.step(0.1 + t, Some(&state(q, [0.0; 6], 0.1 + t)));
+            let e = c.output().target[j] - drive.q;
             if e.abs() > 1e-4 && e.signum() != last_side {
                 sides += 1;
                 last_side = e.signum();
@@ -666,7 +708,7 @@ mod tests {
                     lost += usize::from(!c.in_position());
                 }
             }
-            drive.advance(speeds[5], PERIOD);
+            drive.advance(speeds[j], PERIOD);
         }
         StickyRun {
             sides,
@@ -674,21 +716,22 @@ mod tests {
             moved,
             lost,
             accepted_rad: in_position_at
-                .map_or(f64::NAN, |(_, q)| (c.output().target[5] - q).abs()),
+                .map_or(f64::NAN, |(_, q)| (c.output().target[j] - q).abs()),
         }
     }
 
     #[test]
     fn a_sticking_drive_that_hunts_its_band_is_accepted_where_it_sticks_and_in_position() {
-        // the tool point 20 mm off J6's axis: 0.78 mrad of J6 moves it 16 µm
-        let r = sticky_j6([0.02, 0.0, 0.1]);
+        // the tool point 20 mm off J6's axis: 0.3 mrad of J6 moves it 6 µm (not "on the axis");
+        // at ×1 friction its slips are braked into the band, at ×2 they still cross it
+        let r = sticky(5, J6_X2, 1.0, 3e-4, [0.02, 0.0, 0.1]);
         // it hunted (crossed its band at least once) and then stayed where it was accepted
         assert!(
             r.sides >= 2,
             "the drive never crossed its band: {}",
             r.sides
         );
-        let t = r.in_position_s.expect("in position within 20 s");
+        let t = r.in_position_s.expect("in position within 30 s");
         // a breakaway slips millradians; coming to rest, a few µrad
         assert!(
             r.moved < 2e-5 && r.lost == 0,
@@ -703,10 +746,33 @@ mod tests {
     #[test]
     fn a_stuck_wrist_roll_about_the_tool_point_is_accepted_where_it_rests_without_hunting() {
         // the tool point on J6's axis: J6's error does not move it
-        let r = sticky_j6([0.0, 0.0, 0.35]);
+        let r = sticky(5, J6, 1.0, 7.8e-4, [0.0, 0.0, 0.35]);
         let t = r.in_position_s.expect("in position");
         assert!(t < 0.1, "in position after {t} s");
         assert!(r.sides <= 1 && r.moved < 2e-5 && r.lost == 0, "{}", r.sides);
         assert!((r.accepted_rad - 7.8e-4).abs() < 2e-5, "{}", r.accepted_rad);
+    }
+
+    #[test]
+    fn a_sticking_shoulder_at_twice_the_friction_is_braked_on_its_slips_and_rests_in_its_band() {
+        // J2's breakaway at ×2 friction releases 32 N·m over Coulomb: unbraked beyond 1 × its
+        // speed it slips ≈ 1 mrad, past a 0.1 mrad band both ways, and hunted for 20 s
+        // (13–14 crossings, never in position) before slips were braked
+        for offset in [3e-4, 7.8e-4, -5e-4] {
+            let r = sticky(1, J2_X2, 1.0, offset, [0.0, 0.0, 0.1]);
+            let t = r.in_position_s.expect("in position within 30 s");
+            assert!(r.sides <= 6, "{offset}: crossed its band {} times", r.sides);
+            // in its own band, not accepted by the hunting guard (J2 moves the tool point)
+            assert!(
+                r.accepted_rad <= 1e-4,
+                "{offset}: {} rad off",
+                r.accepted_rad
+            );
+            assert!(
+                r.moved < 2e-5 && r.lost == 0,
+                "{offset}: after {t} s moved {}",
+                r.moved
+            );
+        }
     }
 }

@@ -1,5 +1,10 @@
 //! The holding band: which motor-angle errors the position loop leaves alone while the arm
-//! holds, and whether the arm is *in position*.
+//! holds, how hard it brakes a drive that slips, and whether the arm is *in position*.
+//!
+//! **Slip braking** ([`hold_brake`]): holding, `hold_damping` × the motor's speed comes off
+//! its speed command, and at least [`SLIP_DAMPING`] × the part of the speed beyond
+//! [`SLIP_SPEED`] — a slip after breakaway, braked hard so that it ends in or near the band,
+//! while a drive creeping onto its target (slower than that) is damped only as configured.
 //!
 //! Holding, an error within `hold_deadband` gets no correction (a sticking drive would
 //! otherwise hunt its last fraction of a milliradian). A drive that sticks and slips moves in
@@ -26,6 +31,24 @@
 /// The widest band the hunting guard accepts, as a multiple of `hold_deadband`: a drive
 /// further off keeps being corrected.
 pub const HUNT_BAND_MAX: f64 = 10.0;
+/// The hold damping on a drive's speed beyond [`SLIP_SPEED`] (dimensionless; a configured
+/// `hold_damping` above it is kept).
+pub const SLIP_DAMPING: f64 = 4.0;
+/// Holding, a motor faster than this is slipping after a breakaway, rad/s.
+pub const SLIP_SPEED: f64 = 1e-2;
+
+/// The speed the hold takes off a drive's speed command, rad/s, for the configured
+/// `hold_damping` `base` and the motor's speed `speed` (rad/s): `base × speed`, and on the
+/// part of the speed beyond [`SLIP_SPEED`] at least [`SLIP_DAMPING`] × it (none when `base`
+/// is 0: damping off).
+pub(crate) fn hold_brake(base: f64, speed: f64) -> f64 {
+    let extra = if base > 0.0 {
+        SLIP_DAMPING.max(base) - base
+    } else {
+        0.0
+    };
+    base * speed + extra * speed.signum() * (speed.abs() - SLIP_SPEED).max(0.0)
+}
 /// The farthest the guard lets an accepted drive's error move the tool point, m: it accepts
 /// a hunting drive only where that costs no accuracy (a wrist roll about the tool's own axis),
 /// a shoulder hunting 0.1 mrad moves the tool 0.08 mm and keeps being corrected.
@@ -312,5 +335,22 @@ mod tests {
             b.update(0.01, true, 0.0, &[0.0; 6], &[1e-5; 6], &[0.0; 6], |_| 0.0);
         }
         assert!(b.in_position());
+    }
+
+    #[test]
+    fn the_hold_brakes_a_slip_harder_than_a_creep_and_not_at_all_when_damping_is_off() {
+        // below the slip speed: the configured damping alone (a creeping drive as before)
+        for v in [0.0, 2e-3, -9e-3] {
+            assert_eq!(hold_brake(1.0, v), v);
+        }
+        // beyond it: SLIP_DAMPING on the excess, continuous at the threshold, odd in the speed
+        let v = 0.05;
+        let want = v + (SLIP_DAMPING - 1.0) * (v - SLIP_SPEED);
+        assert!((hold_brake(1.0, v) - want).abs() < 1e-15);
+        assert!((hold_brake(1.0, -v) + want).abs() < 1e-15);
+        assert!((hold_brake(1.0, SLIP_SPEED + 1e-12) - SLIP_SPEED).abs() < 1e-11);
+        // a configured damping above SLIP_DAMPING is kept; 0 turns the hold's damping off
+        assert_eq!(hold_brake(6.0, v), 6.0 * v);
+        assert_eq!(hold_brake(0.0, v), 0.0);
     }
 }
