@@ -31,24 +31,6 @@
 /// The widest band the hunting guard accepts, as a multiple of `hold_deadband`: a drive
 /// further off keeps being corrected.
 pub const HUNT_BAND_MAX: f64 = 10.0;
-/// The hold damping on a drive's speed beyond [`SLIP_SPEED`] (dimensionless; a configured
-/// `hold_damping` above it is kept).
-pub const SLIP_DAMPING: f64 = 4.0;
-/// Holding, a motor faster than this is slipping after a breakaway, rad/s.
-pub const SLIP_SPEED: f64 = 1e-2;
-
-/// The speed the hold takes off a drive's speed command, rad/s, for the configured
-/// `hold_damping` `base` and the motor's speed `speed` (rad/s): `base × speed`, and on the
-/// part of the speed beyond [`SLIP_SPEED`] at least [`SLIP_DAMPING`] × it (none when `base`
-/// is 0: damping off).
-pub(crate) fn hold_brake(base: f64, speed: f64) -> f64 {
-    let extra = if base > 0.0 {
-        SLIP_DAMPING.max(base) - base
-    } else {
-        0.0
-    };
-    base * speed + extra * speed.signum() * (speed.abs() - SLIP_SPEED).max(0.0)
-}
 /// The farthest the guard lets an accepted drive's error move the tool point, m: it accepts
 /// a hunting drive only where that costs no accuracy (a wrist roll about the tool's own axis),
 /// a shoulder hunting 0.1 mrad moves the tool 0.08 mm and keeps being corrected.
@@ -79,6 +61,25 @@ pub const IN_POSITION_RAD: f64 = 2e-5;
 /// What the guard adds to an accepted error, rad (≈ 1.3 resolver counts): a count's jitter
 /// does not restart the correction.
 const ACCEPT_MARGIN_RAD: f64 = 1e-5;
+
+/// The hold damping on a drive's speed beyond [`SLIP_SPEED`] (dimensionless; a configured
+/// `hold_damping` above it is kept).
+pub const SLIP_DAMPING: f64 = 4.0;
+/// Holding, a motor faster than this is slipping after a breakaway, rad/s.
+pub const SLIP_SPEED: f64 = 1e-2;
+
+/// The speed the hold takes off a drive's speed command, rad/s, for the configured
+/// `hold_damping` `base` and the motor's speed `speed` (rad/s): `base × speed`, and on the
+/// part of the speed beyond [`SLIP_SPEED`] at least [`SLIP_DAMPING`] × it (none when `base`
+/// is 0: damping off).
+pub(crate) fn hold_brake(base: f64, speed: f64) -> f64 {
+    let extra = if base > 0.0 {
+        SLIP_DAMPING.max(base) - base
+    } else {
+        0.0
+    };
+    base * speed + extra * speed.signum() * (speed.abs() - SLIP_SPEED).max(0.0)
+}
 
 /// Per-joint holding band and in-position state (no allocation; updated every cycle).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
