@@ -72,7 +72,7 @@ pub const SLIP_SPEED: f64 = 1e-2;
 /// `hold_damping` `base` and the motor's speed `speed` (rad/s): `base × speed`, and on the
 /// part of the speed beyond [`SLIP_SPEED`] at least [`SLIP_DAMPING`] × it (none when `base`
 /// is 0: damping off).
-pub(crate) fn hold_brake(base: f64, speed: f64) -> f64 {
+pub fn hold_brake(base: f64, speed: f64) -> f64 {
     let extra = if base > 0.0 {
         SLIP_DAMPING.max(base) - base
     } else {
