@@ -16,6 +16,7 @@
 //! Each step is a method on plain data with no clock and no allocation; a step that finds a
 //! fault returns it, and `step` stops the arm with it.
 
+use super::hold::hold_brake;
 use super::*;
 
 impl Controller {
@@ -237,7 +238,7 @@ impl Controller {
                 e
             };
             let damping = if holding {
-                super::hold::hold_brake(self.p.hold_damping, self.motor_speed[j])
+                hold_brake(self.p.hold_damping, self.motor_speed[j])
             } else {
                 0.0
             };
@@ -457,7 +458,7 @@ mod tests {
         }
         let (speeds, _) = c.position_loop(&s, &s.q_motor).expect("within limits");
         // 2 × 0.05, and SLIP_DAMPING on its excess over the slip speed
-        let want = super::super::hold::hold_brake(2.0, 0.05);
+        let want = hold_brake(2.0, 0.05);
         assert!((want - 0.1 - 2.0 * 0.04).abs() < 1e-12);
         assert!((speeds[1] + want).abs() < 1e-3, "{}", speeds[1]);
         assert_eq!(speeds[0], 0.0);
