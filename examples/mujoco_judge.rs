@@ -381,8 +381,10 @@ struct Paired {
 /// the tool (the target − the model's tool at the resolvers' rest angles and the daemon's
 /// torques), the daemon's torque estimate at rest (that tool − the same with MuJoCo's spring
 /// torques), the resolvers' repeatable error (− the same from MuJoCo's motor angles) and the
-/// model's own geometry and compliance (− MuJoCo's tool) — and the mean placement with each
-/// part taken out. The judge knows the plant's truth; the daemon and `pa10 discover` do not.
+/// model's own geometry and compliance (− MuJoCo's tool) — the mean placement with each part
+/// taken out, and the model's own part once more from the same model fitted to the campaign
+/// as exact resolvers would have read it. The judge knows the plant's truth; the daemon and
+/// `pa10 discover` do not.
 #[derive(Debug, Clone, Serialize)]
 struct Miss {
     /// The extended model's mean placement over the poses the split covers ÷ the floor.
@@ -392,17 +394,28 @@ struct Miss {
     resolvers_realised: f64,
     /// The mean placement ÷ the floor with one part taken out: servo, torque, resolvers, model.
     without: [f64; 4],
+    /// The model's own part, mean ÷ the floor: as fitted, and fitted to the campaign as exact
+    /// resolvers would have read it (the resolvers' error at the campaign's poses taken out of
+    /// the fit).
+    model_part: [f64; 2],
+    /// The mean placement ÷ the floor with the model's part from that exact-resolver fit.
+    with_exact_campaign: f64,
     /// What the miss is: `resolvers` (within [`GOAL_RATIO`] × the floor these poses realised:
-    /// an error of the resolvers, not of the arm, that no parameter of the model removes), else
-    /// the part whose removal helps most of `servo`, `torque` and `model`.
+    /// an error of the resolvers, not of the arm, that no parameter of the model removes),
+    /// `campaign resolvers` (within it with the model fitted to the campaign as exact
+    /// resolvers read it: the same error, carried into the fit at the campaign's poses), else
+    /// the part whose removal helps most of `servo`, `torque` and `model` (what a fit to exact
+    /// readings still misses: an effect the library lacks, or the instrument's noise).
     cause: &'static str,
     /// The same in words, with the numbers.
     says: String,
 }
 
 /// The parts of a placement error at one pose (tool point, instrument frame, mm): servo,
-/// torque, resolvers, model ([`Miss`]); they sum to the target − MuJoCo's tool.
-type Parts = [nalgebra::Vector3<f64>; 4];
+/// torque, resolvers, model ([`Miss`]), which sum to the target − MuJoCo's tool; and fifth,
+/// the model part of the same model fitted to the campaign as exact resolvers would have
+/// read it (the fourth again where that fit was not made).
+type Parts = [nalgebra::Vector3<f64>; 5];
 
 /// [`Paired`] over the poses where both `cal` and `ext` have an error (mm); `None` below two.
 fn paired(cal: &[Option<f64>], ext: &[Option<f64>]) -> Option<Paired> {
@@ -430,22 +443,33 @@ fn miss(parts: &[Parts], floor_mm: f64) -> Option<Miss> {
     if parts.is_empty() || floor_mm <= 0.0 {
         return None;
     }
-    let n = parts.len() as f64;
-    let total = |p: &Parts| p.iter().sum::<nalgebra::Vector3<f64>>();
-    let ratio = parts.iter().map(|p| total(p).norm()).sum::<f64>() / n / floor_mm;
+    let mean = |f: &dyn Fn(&Parts) -> nalgebra::Vector3<f64>| {
+        parts.iter().map(|p| f(p).norm()).sum::<f64>() / parts.len() as f64 / floor_mm
+    };
+    let total = |p: &Parts| p[..4].iter().sum::<nalgebra::Vector3<f64>>();
+    let ratio = mean(&total);
     if ratio <= GOAL_RATIO {
         return None;
     }
-    let resolvers_realised = parts.iter().map(|p| p[2].norm()).sum::<f64>() / n / floor_mm;
-    let without: [f64; 4] = std::array::from_fn(|k| {
-        parts.iter().map(|p| (total(p) - p[k]).norm()).sum::<f64>() / n / floor_mm
-    });
-    let (cause, says) = if ratio <= GOAL_RATIO * resolvers_realised {
+    let realised = mean(&|p| p[2]);
+    let without: [f64; 4] = std::array::from_fn(|k| mean(&|p| total(p) - p[k]));
+    let model_part = [mean(&|p| p[3]), mean(&|p| p[4])];
+    let with_exact_campaign = mean(&|p| total(p) - p[3] + p[4]);
+    let goal = GOAL_RATIO * realised;
+    let (cause, says) = if ratio <= goal {
         (
             "resolvers",
             format!(
-                "the resolvers' repeatable error these poses realised is {resolvers_realised:.2}× the floor, and the placement is within {GOAL_RATIO}× of that: an error of the resolvers, which no parameter of the arm's model removes (without it {:.2}×)",
+                "the resolvers' repeatable error these poses realised is {realised:.2}× the floor, and the placement is within {GOAL_RATIO}× of that: an error of the resolvers, which no parameter of the arm's model removes (without it {:.2}×)",
                 without[2]
+            ),
+        )
+    } else if with_exact_campaign <= goal {
+        (
+            "campaign resolvers",
+            format!(
+                "the resolvers' repeatable error at the campaign's poses, carried into the fit: the same model fitted to the campaign as exact resolvers would have read it places within {with_exact_campaign:.2}× the floor (its own part {:.2} → {:.2}×; the resolvers realised {realised:.2}× here)",
+                model_part[0], model_part[1]
             ),
         )
     } else {
@@ -456,26 +480,32 @@ fn miss(parts: &[Parts], floor_mm: f64) -> Option<Miss> {
         let what = match k {
             0 => (
                 "servo",
-                "where the drives came to rest (a stuck drive rests anywhere in its band)",
+                "where the drives came to rest (a stuck drive rests anywhere in its band)"
+                    .to_string(),
             ),
-            1 => ("torque", "the daemon's torque estimate at rest"),
+            1 => ("torque", "the daemon's torque estimate at rest".to_string()),
             _ => (
                 "model",
-                "the model's own geometry and compliance: an effect the library lacks, or the calibration's noise",
+                format!(
+                    "the model's own geometry and compliance, {:.2}× the floor fitted to exact readings too: an effect the library lacks, or the instrument's noise",
+                    model_part[1]
+                ),
             ),
         };
         (
             what.0,
             format!(
-                "{}: without it {:.2}× the floor (the resolvers realised {resolvers_realised:.2}×)",
+                "{}: without it {:.2}× the floor (the resolvers realised {realised:.2}×)",
                 what.1, without[k]
             ),
         )
     };
     Some(Miss {
         ratio,
-        resolvers_realised,
+        resolvers_realised: realised,
         without,
+        model_part,
+        with_exact_campaign,
         cause,
         says,
     })
@@ -991,8 +1021,9 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             .map_err(|e| anyhow!("pose {id}: {e}"))?;
         configs.push((id.clone(), reference));
     }
+    let (rows, mut exact_q) = gather(&mut ls, &configs, &CAL_LOADS, repeats, &mut rng)?;
     let mut data = Dataset {
-        rows: gather(&mut ls, &configs, &CAL_LOADS, repeats, &mut rng)?,
+        rows,
         ..Dataset::default()
     };
     // 1a. `--extra-configs`: drawn, reached and read on their own stream (so the validation
@@ -1016,9 +1047,10 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                 extra.push((format!("c{}", extra.len() + 1), q));
             }
         }
-        let rows = gather(&mut ls, &extra, &CAL_LOADS, repeats, &mut crng)
+        let (rows, exact) = gather(&mut ls, &extra, &CAL_LOADS, repeats, &mut crng)
             .context("the extra configurations")?;
         data.rows.extend(rows);
+        exact_q.extend(exact);
     }
     data.meta = Some(Meta {
         inner_configs: Some(
@@ -1043,7 +1075,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         let configs = novel_configs(&nominal, if o.quick { 4 } else { 10 }, &mut hrng);
         Some(Dataset {
             rows: gather(&mut ls, &configs, &VAL_LOADS, repeats, &mut hrng)
-                .context("the held-out campaign")?,
+                .context("the held-out campaign")?
+                .0,
             meta: Some(sidecar(
                 format!("MuJoCo plant (seed {}) through pa10d, held out", o.seed),
                 &tool,
@@ -1120,6 +1153,31 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         }
         None => None,
     };
+    // 2c. The judge's diagnosis only (it knows the plant's motor angles): the extended model
+    //     fitted again, its named effects held, to the campaign as exact resolvers would have
+    //     read it — what its own error is once the resolvers' error at the campaign's poses
+    //     no longer enters the fit (`Miss`).
+    let twin = match &discovery {
+        Some((d, _, _)) => {
+            let mut exact = raw.clone();
+            for (row, q) in exact.rows.iter_mut().zip(&exact_q) {
+                row.q = *q;
+            }
+            let exact = if model_torques {
+                settled_model_torques(&d.model, &exact, None, &copts)
+                    .context("the exact-resolver campaign's model torques")?
+                    .0
+            } else {
+                exact
+            };
+            Some(
+                calibrate(&d.model, &exact, None, &copts, &|_| {})
+                    .context("fitting the extended model to the exact-resolver campaign")?
+                    .model,
+            )
+        }
+        None => None,
+    };
 
     // 3. Novel poses (instrument frame) at 0/45/90 N, each model loaded into the daemon.
     let n_val = o.validation_poses.unwrap_or(if o.quick { 2 } else { 6 });
@@ -1170,7 +1228,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                 .with_context(|| format!("validation pose {}: loading the {name} model", k + 1))?;
             // the calibrated and extended models take the loads in the same order
             let reversed = mi >= 1;
-            match validate_pose(&mut ls, m, target, &truth_base, reversed) {
+            let twin = twin.as_ref().filter(|_| mi == 2);
+            match validate_pose(&mut ls, m, twin, target, &truth_base, reversed) {
                 Ok(v) => {
                     move_settle_s[mi].push(v.after_move_s);
                     if mi == 1 {
@@ -1374,16 +1433,17 @@ fn novel_configs(nominal: &Model, n: usize, rng: &mut Pcg64) -> Vec<(String, [f6
 /// means of the motor angles and currents the daemon reads beside the instrument's reading of
 /// MuJoCo's mean tool pose (with the drawn instrument noise) — as a tracker takes a stationary
 /// point and `pa10 collect` averages a still phase. One instant of a link still ringing on
-/// stuck drives is not where the arm rests (docs/judge.md §9, eleventh session).
+/// stuck drives is not where the arm rests (docs/judge.md §9, eleventh session). Returns the
+/// rows and, per row, MuJoCo's motor angles (rad): what exact resolvers would have read.
 fn gather(
     ls: &mut Lockstep,
     configs: &[(String, [f64; 6])],
     loads: &[f64],
     repeats: usize,
     rng: &mut Pcg64,
-) -> Result<Vec<Row>> {
+) -> Result<(Vec<Row>, Vec<[f64; 6]>)> {
     let truth = ls.servo.truth().clone();
-    let mut rows = Vec::new();
+    let (mut rows, mut exact) = (Vec::new(), Vec::new());
     for (n, (id, q)) in configs.iter().enumerate() {
         move_settle(ls, ApiRequest::MoveJoints { q: *q }).with_context(|| format!("pose {id}"))?;
         let mut order = loads.to_vec();
@@ -1404,10 +1464,11 @@ fn gather(
                     temperature_c: None,
                     line: 0,
                 });
+                exact.push(o.motor);
             }
         }
     }
-    Ok(rows)
+    Ok((rows, exact))
 }
 
 /// `pa10 identify`'s tour through the daemon (6 waypoints quick, 10 full): the nominal model
@@ -1589,10 +1650,12 @@ const APPROACH_OFFSET: [f64; 6] = [0.05, 0.05, -0.05, 0.05, 0.05, 0.05];
 /// Moves to the approach configuration of `target` (its inverse kinematics on `model` plus
 /// [`APPROACH_OFFSET`]), then to `model`'s estimate of `target` (instrument frame), and
 /// measures it at 0/45/90 N (in reverse order when `reversed`) by MuJoCo's tool pose; any
-/// fault is an error.
+/// fault is an error. `twin`: the same model fitted to the campaign as exact resolvers would
+/// have read it, whose own error the split's fifth part is ([`Parts`]).
 fn validate_pose(
     ls: &mut Lockstep,
     model: &Model,
+    twin: Option<&Model>,
     target: &Frame,
     truth_base: &Frame,
     reversed: bool,
@@ -1650,11 +1713,16 @@ fn validate_pose(
             r.predicted_exact_mm[l] = Some(apart_mm(&exact, &got));
             r.resolver_share_mm[l] = Some(apart_mm(&at, &exact));
             let p = |f: &Frame| f.translation.vector * 1e3;
+            let twin_exact = match twin {
+                Some(t) => predicted(&o.motor, &tau, t, VAL_LOADS[l])?.1,
+                None => exact,
+            };
             r.parts_mm[l] = Some([
                 p(target) - p(&own),
                 p(&own) - p(&at),
                 p(&at) - p(&exact),
                 p(&exact) - p(&got),
+                p(&twin_exact) - p(&got),
             ]);
             r.torque_error_nm[l] = Some(std::array::from_fn(|j| o.tau[j] - tau[j]));
             r.deflection_error_mrad[l] = Some(std::array::from_fn(|j| (link[j] - o.link[j]) * 1e3));
@@ -1978,8 +2046,8 @@ mod tests {
 
     /// Parts at `n` poses with the magnitudes given (mm): servo, resolvers and model along
     /// three orthogonal directions (turned about z from pose to pose), the torque's along
-    /// their diagonal.
-    fn parts(n: usize, mags: [f64; 4]) -> Vec<Parts> {
+    /// their diagonal, the exact-resolver fit's model part along the model's.
+    fn parts(n: usize, mags: [f64; 5]) -> Vec<Parts> {
         (0..n)
             .map(|i| {
                 let (s, c) = (i as f64).sin_cos();
@@ -1993,6 +2061,7 @@ mod tests {
                     (x + y + z).normalize() * mags[1],
                     y * mags[2],
                     z * mags[3],
+                    z * mags[4],
                 ]
             })
             .collect()
@@ -2001,19 +2070,23 @@ mod tests {
     #[test]
     fn a_load_within_the_goal_has_no_miss_and_misses_are_told_apart() {
         let floor = 0.2;
-        assert!(miss(&parts(6, [0.02, 0.01, 0.15, 0.04]), floor).is_none());
+        assert!(miss(&parts(6, [0.02, 0.01, 0.15, 0.04, 0.04]), floor).is_none());
         assert!(miss(&[], floor).is_none());
-        // the resolvers realised well above the floor, the rest small: their miss
-        let m = miss(&parts(6, [0.02, 0.01, 0.30, 0.03]), floor).expect("a miss");
+        // the resolvers realised well above the floor, the rest small: theirs
+        let m = miss(&parts(6, [0.02, 0.01, 0.30, 0.03, 0.03]), floor).expect("a miss");
         assert_eq!(m.cause, "resolvers");
         assert!(m.ratio > GOAL_RATIO && m.resolvers_realised > 1.4);
         // the resolvers at the floor, the servo's miss large: the servo's
-        let m = miss(&parts(6, [0.20, 0.01, 0.20, 0.03]), floor).expect("a miss");
+        let m = miss(&parts(6, [0.20, 0.01, 0.20, 0.03, 0.03]), floor).expect("a miss");
         assert_eq!(m.cause, "servo");
         assert!(m.without[0] < m.without[3] && m.says.contains("came to rest"));
-        // the model wrong by more than anything but the resolvers: the model's
-        let m = miss(&parts(6, [0.02, 0.01, 0.20, 0.25]), floor).expect("a miss");
+        // the model off, and as far off fitted to exact readings: the model's
+        let m = miss(&parts(6, [0.02, 0.01, 0.20, 0.25, 0.24]), floor).expect("a miss");
         assert_eq!(m.cause, "model");
         assert!(m.says.contains("effect the library lacks"));
+        // the model off, but not once fitted to exact readings: the campaign's resolvers
+        let m = miss(&parts(6, [0.02, 0.01, 0.20, 0.25, 0.02]), floor).expect("a miss");
+        assert_eq!(m.cause, "campaign resolvers");
+        assert!((m.model_part[0] - 1.25).abs() < 1e-9 && m.with_exact_campaign < 1.1);
     }
 }
