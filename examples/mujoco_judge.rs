@@ -1098,13 +1098,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     // `pa10 calibrate --model-torques`, at the links' angles.
     let model_torques = ["model", "estimated"].contains(&o.torque_source.as_str());
     let raw = data;
-    let data = if model_torques {
-        settled_model_torques(&base, &raw, None, &copts)
-            .context("the campaign's model torques")?
-            .0
-    } else {
-        raw.clone()
-    };
+    let data =
+        as_fitted(&base, &raw, model_torques, &copts).context("the campaign's model torques")?;
     if let Some(k) = &o.keep {
         std::fs::create_dir_all(k).with_context(|| format!("--keep {}", k.display()))?;
         data.save(k.join("campaign.csv"))?;
@@ -1138,13 +1133,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             let mut d = discover(&full, &data, Some(&h), &dopts).context("pa10 discover")?;
             if o.recalibrate && !d.effects.is_empty() {
                 // `pa10 calibrate --model extended.yaml --model-torques`
-                let data = if model_torques {
-                    settled_model_torques(&d.model, &raw, None, &copts)
-                        .context("the extended model's torques")?
-                        .0
-                } else {
-                    data
-                };
+                let data = as_fitted(&d.model, &raw, model_torques, &copts)
+                    .context("the extended model's torques")?;
                 d.model = calibrate(&d.model, &data, None, &copts, &|_| {})
                     .context("recalibrating the extended model")?
                     .model;
@@ -1163,13 +1153,8 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             for (row, q) in exact.rows.iter_mut().zip(&exact_q) {
                 row.q = *q;
             }
-            let exact = if model_torques {
-                settled_model_torques(&d.model, &exact, None, &copts)
-                    .context("the exact-resolver campaign's model torques")?
-                    .0
-            } else {
-                exact
-            };
+            let exact = as_fitted(&d.model, &exact, model_torques, &copts)
+                .context("the exact-resolver campaign's model torques")?;
             Some(
                 calibrate(&d.model, &exact, None, &copts, &|_| {})
                     .context("fitting the extended model to the exact-resolver campaign")?
@@ -1237,16 +1222,21 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                         d.setpoint_rad = Some(v.setpoint);
                     }
                     d.error_mm[mi] = Some(v.error_mm);
-                    d.exact_mm[mi] = v.predicted_exact_mm;
+                    // the model alone (MuJoCo's motor angles and torques), the resolvers' share
+                    // and the model with MuJoCo's torques, from the split
+                    let exact = v.part_mm(|p| p[3]);
+                    let share = v.part_mm(|p| p[2]);
+                    let with_true = v.part_mm(|p| p[2] + p[3]);
+                    d.exact_mm[mi] = exact;
                     d.sigma_mm[mi] = v.sigma_mm;
                     at_rest.extend(v.rest0);
                     for l in 0..VAL_LOADS.len() {
                         errs[mi][l].push(v.error_mm[l]);
                         predicted[mi][l].push(v.predicted_mm[l]);
-                        predicted_true[mi][l].extend(v.predicted_true_mm[l]);
-                        predicted_exact[mi][l].extend(v.predicted_exact_mm[l]);
+                        predicted_true[mi][l].extend(with_true[l]);
+                        predicted_exact[mi][l].extend(exact[l]);
                         deflection[mi][l].extend(v.deflection_error_mrad[l]);
-                        resolver_share[mi][l].extend(v.resolver_share_mm[l]);
+                        resolver_share[mi][l].extend(share[l]);
                         torque_error[mi][l].extend(v.torque_error_nm[l]);
                         parts[mi][l].extend(v.parts_mm[l]);
                         rest[mi][l].push(v.rest_mrad[l]);
@@ -1418,6 +1408,22 @@ fn novel_pose(nominal: &Model, rng: &mut Pcg64) -> (Frame, [f64; 6]) {
             return (t, q);
         }
     }
+}
+
+/// The campaign `raw` as the fit sees it from `model`: where the daemon's torques come from
+/// the model, the model's torques at the links' angles (`pa10 calibrate --model-torques`; the
+/// currents carry friction), else as gathered.
+fn as_fitted(
+    model: &Model,
+    raw: &Dataset,
+    model_torques: bool,
+    copts: &CalibOptions,
+) -> Result<Dataset> {
+    Ok(if model_torques {
+        settled_model_torques(model, raw, None, copts)?.0
+    } else {
+        raw.clone()
+    })
 }
 
 /// `n` novel configurations (ids `H1`…) of [`novel_pose`].
@@ -1622,17 +1628,13 @@ struct PoseResult {
     error_mm: [f64; 3],
     /// Per load: |MuJoCo's tool − the model's prediction at the rest angles|, mm.
     predicted_mm: [f64; 3],
-    /// Per load: the same with MuJoCo's spring torques (when the plant says them), mm.
-    predicted_true_mm: [Option<f64>; 3],
-    /// Per load: the same from MuJoCo's motor angles too (no resolver error), mm.
-    predicted_exact_mm: [Option<f64>; 3],
     /// Per load: the model's joint deflection − MuJoCo's, mrad (when the plant says its springs).
     deflection_error_mrad: [Option<[f64; 6]>; 3],
-    /// Per load: the model's tool from the resolvers' − from MuJoCo's motor angles, mm.
-    resolver_share_mm: [Option<f64>; 3],
     /// Per load: the daemon's joint torques at rest − MuJoCo's spring torques, N·m.
     torque_error_nm: [Option<[f64; 6]>; 3],
-    /// Per load: the placement error's parts ([`Parts`]), mm.
+    /// Per load: the placement error's parts ([`Parts`]; when the plant says its springs), mm:
+    /// the prediction with MuJoCo's spring torques misses MuJoCo's tool by the resolvers' and
+    /// the model's parts, from MuJoCo's motor angles too by the model's alone.
     parts_mm: [Option<Parts>; 3],
     rest_mrad: [f64; 3],
     settle_s: [f64; 3],
@@ -1640,6 +1642,13 @@ struct PoseResult {
     rest0: Option<([f64; 6], [f64; 6])>,
     /// At rest at 0 N: the daemon's `position_sigma_mm`.
     sigma_mm: Option<f64>,
+}
+
+impl PoseResult {
+    /// Per load: |what `pick` takes of the split| (mm), when the plant said its springs.
+    fn part_mm(&self, pick: fn(&Parts) -> nalgebra::Vector3<f64>) -> [Option<f64>; 3] {
+        self.parts_mm.map(|p| p.map(|p| pick(&p).norm()))
+    }
 }
 
 /// Every joint's offset of the approach configuration from a validation pose's, rad: each
@@ -1679,10 +1688,7 @@ fn validate_pose(
         setpoint: status(ls)?.setpoint,
         error_mm: [0.0; 3],
         predicted_mm: [0.0; 3],
-        predicted_true_mm: [None; 3],
-        predicted_exact_mm: [None; 3],
         deflection_error_mrad: [None; 3],
-        resolver_share_mm: [None; 3],
         torque_error_nm: [None; 3],
         parts_mm: [None; 3],
         rest_mrad: [0.0; 3],
@@ -1708,10 +1714,7 @@ fn validate_pose(
         r.predicted_mm[l] = apart_mm(&own, &got);
         if let Some(tau) = o.spring {
             let (_, at) = predicted(&o.q_motor, &tau, model, VAL_LOADS[l])?;
-            r.predicted_true_mm[l] = Some(apart_mm(&at, &got));
             let (link, exact) = predicted(&o.motor, &tau, model, VAL_LOADS[l])?;
-            r.predicted_exact_mm[l] = Some(apart_mm(&exact, &got));
-            r.resolver_share_mm[l] = Some(apart_mm(&at, &exact));
             let p = |f: &Frame| f.translation.vector * 1e3;
             let twin_exact = match twin {
                 Some(t) => predicted(&o.motor, &tau, t, VAL_LOADS[l])?.1,
