@@ -438,3 +438,59 @@ fn a_campaign_of_one_wrist_is_flagged_and_one_of_both_is_not() {
     );
     assert!(e1 > 1.3 * e2, "one wrist {e1} mm vs both {e2} mm");
 }
+
+/// A model that carries an effect outside its joints — a forearm that bends, written by
+/// `pa10 discover` as a compensated record — is calibrated *with* it: on a campaign whose
+/// truth bends, the fit does not hand the bending to J3's spring (which the same moment loads),
+/// so the spring comes out as the truth's while a model without the record takes the bending
+/// into it. (Before the calibration predicted through the load effects, both fits gave J3 the
+/// bending, and the daemon then applied it twice.)
+#[test]
+fn calibration_fits_a_model_with_its_load_effects() {
+    use pa10::model::EffectRecord;
+    use pa10::sim::experiment::{DiscoverySpec, Hidden, discovery_campaign};
+    let _cpu = crate::common::busy_lock();
+    let bend = 2e-5; // rad/(N·m): the forearm (DH row 3), ≈ 0.5 mrad at 90 N
+    let c = discovery_campaign(&DiscoverySpec {
+        configs: 30,
+        repeats: 1,
+        both_directions: false,
+        temperatures_c: vec![],
+        hidden: vec![Hidden::Bending(3, bend)],
+        ..Default::default()
+    })
+    .unwrap();
+    let rigid = Model::nominal();
+    let mut d = rigid.data().clone();
+    d.discovered.push(EffectRecord::compensated_one(
+        "link_bending",
+        Some(4),
+        "compliance",
+        bend,
+    ));
+    let bending = Model::new(d).unwrap();
+    let opts = CalibOptions::default();
+    let truth = c.truth.model.stiffness(2).unwrap().klin;
+    let fit = |m: &Model| calibrate(m, &c.data, None, &opts, &|_| {}).unwrap().model;
+    let (with, without) = (fit(&bending), fit(&rigid));
+    assert_eq!(with.load_effects().bending[3], bend, "the record is kept");
+    let k = |m: &Model| m.stiffness(2).unwrap().klin / truth - 1.0;
+    eprintln!(
+        "J3 Klin / truth − 1: with the bending {:+.3}, without {:+.3}",
+        k(&with),
+        k(&without)
+    );
+    assert!(k(&with).abs() < 0.05, "with the bending: {:+.3}", k(&with));
+    assert!(k(&without) < -0.1, "without it: {:+.3}", k(&without));
+    // and the fit with it explains the campaign better
+    let rms = |m: &Model| {
+        let s = evaluate(m, &c.data, None).unwrap();
+        s.iter().map(|e| e.mean_mm).sum::<f64>() / s.len() as f64
+    };
+    assert!(
+        rms(&with) < rms(&without),
+        "{} vs {}",
+        rms(&with),
+        rms(&without)
+    );
+}

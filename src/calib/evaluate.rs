@@ -42,7 +42,7 @@ pub fn evaluate(
         })
         .collect();
     for r in &rows {
-        let pred = model.fk(&model.link_angles(&r.q, &r.tau));
+        let pred = model.tool_at_rest(&r.q, &r.tau, r.load_n);
         let meas = base * r.meas;
         let e = crate::model::pose_error(&pred, &meas);
         let pe = e.fixed_rows::<3>(0).norm() * 1e3;
@@ -79,7 +79,7 @@ pub fn fit_base_only(
     let pairs: Vec<(Frame, Frame)> = rows
         .iter()
         .filter(|r| r.inner)
-        .map(|r| (m.fk(&m.link_angles(&r.q, &r.tau)), r.meas))
+        .map(|r| (m.tool_at_rest(&r.q, &r.tau, r.load_n), r.meas))
         .collect();
     let (psi, _) = base::fit_psi(&pairs, &psi0, opts.r_max);
     Ok(m.with_base_from_instrument(&base::frame_from_psi(&psi))?)
@@ -123,15 +123,17 @@ pub fn canonical_base(model: &Model) -> Frame {
     f.inverse() * model.base_from_instrument()
 }
 
-/// Residual vector of one row (paper units) for external callers (reports, discovery).
+/// Residual vector of one row (paper units) for external callers (reports, discovery): the
+/// resolvers' `q` (rad), torques `tau` (N·m), `load_n` (N) hung at the tool.
 pub fn row_residual(
     model: &Model,
     q: &[f64; 6],
     tau: &[f64; 6],
+    load_n: f64,
     meas: &Frame,
     r_max: f64,
 ) -> Vector6<f64> {
-    let pred = model.fk(&model.link_angles(q, tau));
+    let pred = model.tool_at_rest(q, tau, load_n);
     let b = *model.base_from_instrument();
     base::residual_and_psi_jacobian(&pred, meas, &base::psi_from_frame(&b), &b, r_max).0
 }

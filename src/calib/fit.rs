@@ -198,7 +198,7 @@ impl<'a> OuterProblem<'a> {
     fn predictions(&self, model: &Model) -> Vec<Frame> {
         self.rows
             .iter()
-            .map(|r| model.fk(&model.link_angles(&r.q, &r.tau)))
+            .map(|r| model.tool_at_rest(&r.q, &r.tau, r.load_n))
             .collect()
     }
 
@@ -207,7 +207,7 @@ impl<'a> OuterProblem<'a> {
             .rows
             .iter()
             .filter(|r| r.inner)
-            .map(|r| (model.fk(&model.link_angles(&r.q, &r.tau)), r.meas))
+            .map(|r| (model.tool_at_rest(&r.q, &r.tau, r.load_n), r.meas))
             .collect();
         base::fit_psi(&pairs, start, self.opts.r_max).0
     }
@@ -585,7 +585,7 @@ pub fn calibrate(
             // the inner configurations' own errors are not counted as resolver error.
             let pairs: Vec<(Frame, Frame)> = rows
                 .iter()
-                .map(|r| (model.fk(&model.link_angles(&r.q, &r.tau)), r.meas))
+                .map(|r| (model.tool_at_rest(&r.q, &r.tau, r.load_n), r.meas))
                 .collect();
             let (psi_all, _) = base::fit_psi(&pairs, &psi, opts.r_max);
             let model = model.with_base_from_instrument(&base::frame_from_psi(&psi_all))?;

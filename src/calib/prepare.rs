@@ -207,7 +207,7 @@ pub(crate) fn seed_base(
         .iter()
         .map(|r| {
             model
-                .fk(&model.link_angles(&r.q, &r.tau))
+                .tool_at_rest(&r.q, &r.tau, r.load_n)
                 .translation
                 .vector
         })

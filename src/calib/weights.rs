@@ -254,7 +254,7 @@ pub(crate) fn samples(data: &Dataset, model: &Model, rows: &[Prepared]) -> Vec<S
                 cell,
                 q: r.q,
                 tau: r.tau,
-                residual: pose_error(&(base * r.meas), &model.fk(&q)),
+                residual: pose_error(&(base * r.meas), &model.fk_loaded(&q, r.load_n)),
                 jq,
                 jt,
             }

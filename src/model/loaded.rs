@@ -125,6 +125,16 @@ impl Model {
         displace(self, &f, x, load_n, &self.load_effects, &[0.0; 6], 0.0)
     }
 
+    /// The tool pose (base frame) the calibration predicts for one of its rows: the link
+    /// angles from the resolvers' `q_motor` (rad) under the torques `tau` (N·m) held fixed,
+    /// backlash centred, through the kinematics with `load_n` (N) hung at the tool and the
+    /// model's [`LoadEffects`] — so that a model that bends, sags or carries an unaccounted
+    /// mass outside its joints is fitted with them, not with its joints taking their place.
+    #[inline]
+    pub(crate) fn tool_at_rest(&self, q_motor: &[f64; 6], tau: &[f64; 6], load_n: f64) -> Frame {
+        self.fk_loaded(&self.link_angles(q_motor, tau), load_n)
+    }
+
     /// Link angles (rad) that put the tool, with `load_n` (N) hung at it and the model's
     /// [`LoadEffects`], where the rigid chain puts it at `q`: `q` itself when the model has
     /// none. The daemon applies it to every setpoint, so a setpoint means "the tool at

@@ -366,7 +366,7 @@ fn plots(
                 pa10::calib::dataset::Effort::Torque(t) => t,
                 pa10::calib::dataset::Effort::Current(_) => [0.0; 6],
             };
-            let e = row_residual(model, &r.q, &tau, &r.pose, r_max)
+            let e = row_residual(model, &r.q, &tau, r.load_n, &r.pose, r_max)
                 .fixed_rows::<3>(0)
                 .norm()
                 * r_max
