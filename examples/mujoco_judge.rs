@@ -27,7 +27,8 @@
 //! [--no-recalibrate] [--seed N]
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
 //! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--gain-inertia KGM2] [--check-ratio R] [--trace FILE]
-//! [--keep DIR] [--extra-configs N] [--extra-flipped] [--validation-poses N]`
+//! [--keep DIR] [--extra-configs N] [--extra-flipped] [--validation-poses N] [--hide-gear J:G]
+//! [--hide-bearing J:A:PHI] [--hide-bend upper|forearm:C] [--hide-payload KG] [--exact-resolvers]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
 //! lab: `pa10 identify` first, `torque_source: estimated`, `hold_damping: 1`. Needs `pip install
 //! mujoco` (the Python interpreter `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another
@@ -51,7 +52,7 @@ use pa10::model::{Frame, Model, NOMINAL_YAML, Torques, pose_error, pose_parts};
 use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
 use pa10::sim::plant::{
-    FrictionModel, HiddenTransmission, MAX_FRICTION_SCALE, PlantConfig, PlantKind,
+    BENDING_ROWS, FrictionModel, HiddenEffects, MAX_FRICTION_SCALE, PlantConfig, PlantKind,
 };
 use pa10::sim::rig::{HOME, Lockstep, truth_for};
 use pa10::sim::servo::{ServoConfig, ServoSim};
@@ -137,10 +138,12 @@ struct Opts {
     /// `--extra-flipped`: every other `--extra-configs` configuration reached with the other
     /// wrist (J4 + π, −J5, J6 + π): a campaign that sees both wrist branches.
     extra_flipped: bool,
-    /// `--hide-gear J:G`, `--hide-bearing J:A:PHI`: transmission effects the plant hides
-    /// (a gear ratio off by a relative G on joint J; an output bearing's once-per-revolution
-    /// error of A rad at phase PHI rad), for judging what `--discover` names.
-    hidden: Option<HiddenTransmission>,
+    /// `--hide-gear J:G`, `--hide-bearing J:A:PHI`, `--hide-bend LINK:C`, `--hide-payload KG`:
+    /// effects the plant hides (a gear ratio off by a relative G on joint J; an output
+    /// bearing's once-per-revolution error of A rad at phase PHI rad; the upper arm or the
+    /// forearm bending at its midpoint by C rad/(N·m); KG at the tool beyond every declared
+    /// payload), for judging what `--discover` names.
+    hidden: Option<HiddenEffects>,
     /// `--exact-resolvers`: the plant's resolvers without their repeatable error (a
     /// diagnostic: what the loop does when the only error left is the instrument's and the
     /// servo's; the floor quoted stays the specified resolvers').
@@ -256,6 +259,25 @@ fn opts() -> Result<Opts> {
                 let (j, x) = hidden_joint("--hide-bearing", &value("--hide-bearing")?, 2)?;
                 o.hidden.get_or_insert_with(Default::default).bearing[j] = [x[0], x[1]];
             }
+            "--hide-bend" => {
+                let v = value("--hide-bend")?;
+                let (link, c) = v.split_once(':').with_context(|| {
+                    format!("--hide-bend: upper:C or forearm:C (C rad/(N·m)), got {v}")
+                })?;
+                let row = match link {
+                    "upper" => BENDING_ROWS[0],
+                    "forearm" => BENDING_ROWS[1],
+                    _ => bail!("--hide-bend: the link is upper or forearm, got {link}"),
+                };
+                o.hidden.get_or_insert_with(Default::default).bend[row] = c
+                    .parse()
+                    .with_context(|| format!("--hide-bend: a compliance rad/(N·m), got {c}"))?;
+            }
+            "--hide-payload" => {
+                o.hidden.get_or_insert_with(Default::default).payload_kg = value("--hide-payload")?
+                    .parse()
+                    .context("--hide-payload: a mass, kg")?;
+            }
             "--trace" => o.trace = Some(PathBuf::from(value("--trace")?)),
             "--keep" => o.keep = Some(PathBuf::from(value("--keep")?)),
             "--extra-configs" => {
@@ -296,7 +318,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE, --keep DIR, --extra-configs N, --extra-flipped, --validation-poses N, --hide-gear J:G, --hide-bearing J:A:PHI, --exact-resolvers)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE, --keep DIR, --extra-configs N, --extra-flipped, --validation-poses N, --hide-gear J:G, --hide-bearing J:A:PHI, --hide-bend upper|forearm:C, --hide-payload KG, --exact-resolvers)"
             ),
         }
     }
@@ -586,9 +608,10 @@ struct Outcome {
     #[serde(skip_serializing_if = "Option::is_none")]
     discovery: Option<DiscoverySummary>,
     seed: u64,
-    /// The transmission effects the plant hid (`--hide-gear`, `--hide-bearing`), if any.
+    /// The effects the plant hid (`--hide-gear`, `--hide-bearing`, `--hide-bend`,
+    /// `--hide-payload`), if any.
     #[serde(skip_serializing_if = "Option::is_none")]
-    hidden: Option<HiddenTransmission>,
+    hidden: Option<HiddenEffects>,
     /// `--exact-resolvers`: the plant's resolvers had no repeatable error (a diagnostic run).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     exact_resolvers: bool,

@@ -22,9 +22,7 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
-use super::plant::{
-    Drive, FrictionModel, HiddenTransmission, MAX_FRICTION_SCALE, Plant, PlantConfig,
-};
+use super::plant::{Drive, FrictionModel, HiddenEffects, MAX_FRICTION_SCALE, Plant, PlantConfig};
 use crate::model::{Frame as Pose, frame_from_pose};
 
 /// Longest answer line accepted from the plant process, bytes.
@@ -54,7 +52,7 @@ pub struct MujocoOptions {
     /// Link angles the arm starts at rest at, rad.
     pub q0: [f64; 6],
     /// Transmission effects the plant hides (sent only when present).
-    pub hidden: Option<HiddenTransmission>,
+    pub hidden: Option<HiddenEffects>,
 }
 
 impl MujocoOptions {

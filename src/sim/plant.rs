@@ -94,24 +94,45 @@ pub struct PlantConfig {
     /// `mujoco`: how the dry friction behaves at rest.
     #[serde(default)]
     pub friction_model: FrictionModel,
-    /// `mujoco`: transmission effects the plant hides from the daemon (none when absent).
+    /// `mujoco`: effects the plant hides from the daemon (none when absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub hidden: Option<HiddenTransmission>,
+    pub hidden: Option<HiddenEffects>,
     /// Where the command runs (set from the configuration file's folder when it is read).
     #[serde(skip)]
     pub dir: Option<PathBuf>,
 }
 
-/// The largest hidden gear-ratio error [`HiddenTransmission`] accepts (relative).
+/// The largest hidden gear-ratio error [`HiddenEffects`] accepts (relative).
 pub const MAX_HIDDEN_GEAR: f64 = 0.01;
-/// The largest hidden bearing amplitude [`HiddenTransmission`] accepts, rad.
+/// The largest hidden bearing amplitude [`HiddenEffects`] accepts, rad.
 pub const MAX_HIDDEN_BEARING_RAD: f64 = 0.002;
+/// The largest hidden link bending compliance [`HiddenEffects`] accepts, rad/(N·m).
+pub const MAX_HIDDEN_BEND: f64 = 1e-4;
+/// The DH rows (0-based, as `pa10 discover` counts them) that may bend: the upper arm (1) and
+/// the forearm (3).
+pub const BENDING_ROWS: [usize; 2] = [1, 3];
+/// The largest hidden tool mass beyond the declared payload [`HiddenEffects`] accepts, kg.
+pub const MAX_HIDDEN_PAYLOAD_KG: f64 = 10.0;
 
-/// Transmission effects a plant hides between its rotors and the resolvers' reading (the plant
-/// protocol's `hidden`, `docs/plant-protocol.md`): the reading in link units is
-/// `θ_r = (1 + gear_j)·θ − A_j·sin(θ + φ_j)` for the rotor's angle θ — a gear ratio off by a
+/// Whether every value of an array is zero (the protocol leaves such a key out).
+fn all_zero<const N: usize, T: PartialEq + Default>(v: &[T; N]) -> bool {
+    v.iter().all(|x| *x == T::default())
+}
+
+/// Whether a number is zero (the protocol leaves such a key out).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+/// Effects a plant hides from the daemon (the plant protocol's `hidden`,
+/// `docs/plant-protocol.md`), for judging discovery on effects the daemon's model lacks; a real
+/// arm has them unasked. Between the rotors and the resolvers' reading, which in link units is
+/// `θ_r = (1 + gear_j)·θ − A_j·sin(θ + φ_j)` for the rotor's angle θ: a gear ratio off by a
 /// relative `gear_j` and an output bearing's once-per-revolution error of amplitude `A_j`.
-/// For judging discovery on effects the daemon's model lacks; a real arm has them unasked.
+/// Outside the joints: a link that bends at its midpoint by `bend[row]` rad per N·m of the
+/// bending moment it carries, and `payload_kg` at the tool that no declared payload includes.
+/// Keys that are all zero are not sent, so a plant that knows only `gear` and `bearing` answers
+/// as before.
 ///
 /// ```yaml
 /// sim:
@@ -120,20 +141,36 @@ pub const MAX_HIDDEN_BEARING_RAD: f64 = 0.002;
 ///     hidden:
 ///       gear: [0, 0, 0.0005, 0, 0, 0]          # J3's ratio 0.05 % off
 ///       bearing: [[0, 0], [0.0002, 0.7], [0, 0], [0, 0], [0, 0], [0, 0]]  # J2: 0.2 mrad, φ 0.7 rad
+///       bend: [0, 4.0e-6, 0, 0, 0, 0]          # the upper arm: 4 µrad per N·m at its midpoint
+///       payload_kg: 0.5                        # a tool 0.5 kg heavier than declared
+/// ```
+///
+/// ```
+/// use pa10::sim::plant::HiddenEffects;
+/// let mut h = HiddenEffects::default();
+/// h.bend[2] = 1e-6; // J3's row holds no link that bends
+/// assert!(h.validate().unwrap_err().contains("bend[2]"));
 /// ```
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct HiddenTransmission {
+pub struct HiddenEffects {
     /// Per joint, the gear ratio's relative error (|g| ≤ [`MAX_HIDDEN_GEAR`]).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "all_zero")]
     pub gear: [f64; 6],
     /// Per joint, the bearing error's amplitude A (rad, |A| ≤ [`MAX_HIDDEN_BEARING_RAD`]) and
     /// phase φ (rad).
-    #[serde(default)]
+    #[serde(default, skip_serializing_if = "all_zero")]
     pub bearing: [[f64; 2]; 6],
+    /// Per DH row, the link's bending compliance at its midpoint, rad/(N·m) (0 …
+    /// [`MAX_HIDDEN_BEND`], only on [`BENDING_ROWS`]).
+    #[serde(default, skip_serializing_if = "all_zero")]
+    pub bend: [f64; 6],
+    /// Mass at the tool beyond every declared payload, kg (0 … [`MAX_HIDDEN_PAYLOAD_KG`]).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub payload_kg: f64,
 }
 
-impl HiddenTransmission {
+impl HiddenEffects {
     /// Checks every value: why it is refused.
     pub fn validate(&self) -> Result<(), String> {
         for (j, g) in self.gear.iter().enumerate() {
@@ -149,6 +186,24 @@ impl HiddenTransmission {
                     "bearing[{j}]: [amplitude within ±{MAX_HIDDEN_BEARING_RAD} rad, finite phase rad], got [{a}, {phi}]"
                 ));
             }
+        }
+        for (r, c) in self.bend.iter().enumerate() {
+            if !(c.is_finite() && (0.0..=MAX_HIDDEN_BEND).contains(c)) {
+                return Err(format!(
+                    "bend[{r}]: a compliance 0…{MAX_HIDDEN_BEND} rad/(N·m), got {c}"
+                ));
+            }
+            if *c != 0.0 && !BENDING_ROWS.contains(&r) {
+                return Err(format!(
+                    "bend[{r}]: only the rows {BENDING_ROWS:?} (upper arm, forearm) hold a link that bends, got {c}"
+                ));
+            }
+        }
+        let m = self.payload_kg;
+        if !(m.is_finite() && (0.0..=MAX_HIDDEN_PAYLOAD_KG).contains(&m)) {
+            return Err(format!(
+                "payload_kg: a mass 0…{MAX_HIDDEN_PAYLOAD_KG} kg, got {m}"
+            ));
         }
         Ok(())
     }
@@ -326,5 +381,83 @@ impl Plant for ModelPlant {
 
     fn set_load(&mut self, newtons: f64) {
         self.load_n = newtons.max(0.0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hidden_effects_are_read_checked_and_sent_only_where_set() {
+        let c: PlantConfig = serde_yaml::from_str(
+            "kind: mujoco\nhidden:\n  bend: [0, 4.0e-6, 0, 0, 0, 0]\n  payload_kg: 0.5\n",
+        )
+        .unwrap();
+        assert!(c.validate().is_ok());
+        let h = c.hidden.unwrap();
+        assert_eq!((h.bend[1], h.payload_kg), (4.0e-6, 0.5));
+        // what the plant is sent: only the keys set, so a plant that knows gear and bearing
+        // alone reads a gear-only configuration as before
+        let sent = serde_json::to_value(h).unwrap();
+        assert_eq!(
+            sent,
+            serde_json::json!({"bend": [0.0, 4.0e-6, 0.0, 0.0, 0.0, 0.0], "payload_kg": 0.5})
+        );
+        let gear = HiddenEffects {
+            gear: [0.0, 0.0, 5e-4, 0.0, 0.0, 0.0],
+            ..Default::default()
+        };
+        assert_eq!(
+            serde_json::to_value(gear).unwrap(),
+            serde_json::json!({"gear": [0.0, 0.0, 5e-4, 0.0, 0.0, 0.0]})
+        );
+        // refusals name the key and change nothing
+        for (h, key) in [
+            (
+                HiddenEffects {
+                    bend: [0.0, -1e-6, 0.0, 0.0, 0.0, 0.0],
+                    ..Default::default()
+                },
+                "bend[1]",
+            ),
+            (
+                HiddenEffects {
+                    bend: [0.0, 0.0, 0.0, 2.0 * MAX_HIDDEN_BEND, 0.0, 0.0],
+                    ..Default::default()
+                },
+                "bend[3]",
+            ),
+            (
+                HiddenEffects {
+                    bend: [0.0, 0.0, 0.0, 0.0, 1e-6, 0.0],
+                    ..Default::default()
+                },
+                "bend[4]",
+            ),
+            (
+                HiddenEffects {
+                    payload_kg: f64::NAN,
+                    ..Default::default()
+                },
+                "payload_kg",
+            ),
+            (
+                HiddenEffects {
+                    payload_kg: -0.1,
+                    ..Default::default()
+                },
+                "payload_kg",
+            ),
+        ] {
+            let c = PlantConfig {
+                hidden: Some(h),
+                ..serde_yaml::from_str("kind: mujoco").unwrap()
+            };
+            let (k, why) = c.validate().unwrap_err();
+            assert_eq!(k, "hidden");
+            assert!(why.starts_with(key), "{why}");
+        }
+        assert!(serde_yaml::from_str::<PlantConfig>("kind: mujoco\nhidden: {bends: [0]}").is_err());
     }
 }

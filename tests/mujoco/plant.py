@@ -35,10 +35,19 @@ gear ratio off by a relative g_j (the daemon's link angle off by g·θ) and an o
 once-per-revolution error of amplitude A_j (rad); `motor` and `motor_speed` are that reading,
 and a commanded speed is in its units.
 
+Hidden effects outside the joints (optional, also in `hidden`): a link that bends — per DH row
+r (1: the upper arm, 3: the forearm, 0-based as `pa10 discover` counts rows) a flexure at the
+link's midpoint, two hinges across the link with MuJoCo's own joint stiffness 1/c_r (c_r in
+rad/(N·m)) and damping, rigid in torsion: the link turns there by c_r times the bending moment
+MuJoCo computes the distal bodies and the load put on it; and a tool heavier than declared —
+`payload_kg` more mass at the tool point than every `load_kg`/`kg` says. `link` stays the six
+joints' angles; `tool` is MuJoCo's, flexures included.
+
 Protocol (JSON lines on stdin, one JSON line answered on stdout per request):
   {"op": "reset", "q": [6] rad, "load_kg": m, "friction": 0..10 (Coulomb scale), "seed": n, "tool": [3] m,
    "friction_model": "creep" | "stick",
-   "hidden": {"gear": [6] relative (|g| <= 0.01), "bearing": [6] of [A rad (|A| <= 0.002), φ rad]}}
+   "hidden": {"gear": [6] relative (|g| <= 0.01), "bearing": [6] of [A rad (|A| <= 0.002), φ rad],
+              "bend": [6] rad/(N·m) (0..1e-4, rows 1 and 3 only), "payload_kg": 0..10 kg}}
       the arm at rest at link angles q (motor angles and springs in equilibrium), the tool
       point (and the load) at `tool` in the flange frame; answers the state and "dt"
   {"op": "step", "dt": s, "speed": [6] rad/s, "brake": bool}
@@ -93,6 +102,11 @@ STATIC_RATIO = 1.6
 STRIBECK_SPEED = 0.01
 FRICTION_MODELS = ("creep", "stick")
 DT = 0.0005  # physics step, s
+# hidden effects outside the joints: the DH rows that may bend (upper arm, forearm), the
+# largest compliance, rad/(N·m), and the largest unaccounted tool mass, kg
+BEND_ROWS = (1, 3)
+MAX_BEND = 1e-4
+MAX_HIDDEN_PAYLOAD_KG = 10.0
 
 
 def rot_x(a):
@@ -157,8 +171,19 @@ class Truth:
         ]
 
 
-def mjcf(truth, tool=(0.0, 0.0, 0.1)):
-    """The MJCF text. Bodies: the DH frame before joint j is body `l{j}`'s frame."""
+def across(u):
+    """Two unit vectors perpendicular to the unit vector u and to each other."""
+    e = np.array([0.0, 0.0, 1.0]) if abs(u[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    a = e - e.dot(u) * u
+    a /= np.linalg.norm(a)
+    return a, np.cross(u, a)
+
+
+def mjcf(truth, tool=(0.0, 0.0, 0.1), bend=None):
+    """The MJCF text. Bodies: the DH frame before joint j is body `l{j}`'s frame; a bending
+    row r (`bend[r]` > 0, rad/(N·m)) adds body `bend{r}` at the link's midpoint with hinges
+    `b{r}a`, `b{r}b` across the link, and the next body hangs from it."""
+    bend = bend if bend is not None else [0.0] * 6
     # lumped 6C bodies (facts §2.3), in the frame after the joint that carries them:
     # upper arm rides J2 (0.149 m from the shoulder along the arm), forearm J3 (0.164 m from
     # the elbow along the forearm), wrist J5 (0.020 m behind the wrist centre)
@@ -175,12 +200,14 @@ def mjcf(truth, tool=(0.0, 0.0, 0.1)):
     ]
     indent = "    "
     closes = []
+    shift = np.zeros(3)  # where the previous row's flexure body sits in its link's frame
     for j in range(6):
         if j == 0:
             pos, rq = np.zeros(3), np.array([1.0, 0, 0, 0])
         else:
             r, t = dh_constant(j - 1, truth.dep)
-            pos, rq = t, quat(r)
+            pos, rq = t - shift, quat(r)
+        shift = np.zeros(3)
         xml.append(f'{indent}<body name="l{j + 1}" pos="{fmt(pos)}" quat="{fmt(rq)}">')
         k = K1[j] * truth.k_scale[j]
         xml.append(
@@ -211,6 +238,20 @@ def mjcf(truth, tool=(0.0, 0.0, 0.1)):
             xml.append(f'{indent}  <inertial pos="0 0 0" mass="0.2" diaginertia="0.001 0.001 0.001"/>')
         closes.append(f"{indent}</body>")
         indent += "  "
+        if bend[j] > 0:
+            # the flexure at the midpoint of this row's link (this body's frame)
+            t = dh_constant(j, truth.dep)[1]
+            shift = 0.5 * t
+            kb = 1.0 / bend[j]
+            xml.append(f'{indent}<body name="bend{j}" pos="{fmt(shift)}">')
+            for name, axis in zip("ab", across(t / np.linalg.norm(t))):
+                xml.append(
+                    f'{indent}  <joint name="b{j}{name}" type="hinge" axis="{fmt(axis)}" stiffness="{kb}" '
+                    f'damping="{SPRING_DAMPING * kb}" armature="0.001"/>'
+                )
+            xml.append(f'{indent}  <inertial pos="0 0 0" mass="0.01" diaginertia="1e-5 1e-5 1e-5"/>')
+            closes.append(f"{indent}</body>")
+            indent += "  "
     # the flange (DH frame 6) and the tool with its load
     r, t = dh_constant(5, truth.dep)
     xml.append(f'{indent}<body name="flange" pos="{fmt(t)}" quat="{fmt(quat(r))}">')
@@ -239,9 +280,17 @@ class Plant:
             raise ValueError(f"friction_model: one of {', '.join(FRICTION_MODELS)}, got {friction_model!r}")
         self.sticking = friction_model == "stick"
         self.truth = Truth(seed)
-        self.model = mujoco.MjModel.from_xml_string(mjcf(self.truth, tool))
+        hidden = hidden or {}
+        bend = [float(c) for c in hidden.get("bend", [0.0] * 6)]
+        self.extra_kg = float(hidden.get("payload_kg", 0.0))
+        self.model = mujoco.MjModel.from_xml_string(mjcf(self.truth, tool, bend))
         self.data = mujoco.MjData(self.model)
         m = self.model
+        # the flexures' hinges (none by default): addresses and stiffness, N·m/rad
+        flex = [m.joint(f"b{r}{x}").id for r in range(6) if bend[r] > 0 for x in "ab"]
+        self.bq = np.array([m.jnt_qposadr[i] for i in flex], dtype=int)
+        self.bv = np.array([m.jnt_dofadr[i] for i in flex], dtype=int)
+        self.kb = np.array([m.jnt_stiffness[i] for i in flex])
         self.mq = np.array([m.jnt_qposadr[m.joint(f"m{j + 1}").id] for j in range(6)])
         self.sq = np.array([m.jnt_qposadr[m.joint(f"s{j + 1}").id] for j in range(6)])
         self.mv = np.array([m.jnt_dofadr[m.joint(f"m{j + 1}").id] for j in range(6)])
@@ -264,7 +313,6 @@ class Plant:
         self.held = None  # motor angles the brakes hold, or None (servo on)
         self.stuck = np.ones(6, dtype=bool)  # "stick": which drives are stuck
         self.anchor = np.zeros(6)  # "stick": where each stuck motor is pinned, rad
-        hidden = hidden or {}
         self.gear = np.array(hidden.get("gear", [0.0] * 6), dtype=float)
         bearing = np.array(hidden.get("bearing", [[0.0, 0.0]] * 6), dtype=float)
         self.bearing_a, self.bearing_phi = bearing[:, 0], bearing[:, 1]
@@ -324,18 +372,26 @@ class Plant:
     def spring(self, delta):
         return self.k1 * delta + self.k3 * delta**3
 
+    def set_load(self, kg):
+        """The declared load's mass, kg; the tool carries it plus the hidden `payload_kg`."""
+        self.model.body_mass[self.load] = max(kg + self.extra_kg, 1e-6)
+
     def reset(self, q, load_kg=0.0):
-        """At rest at link angles q: springs deflected by the gravity torques they carry."""
+        """At rest at link angles q: springs (and flexures) deflected by the gravity torques
+        they carry."""
         d = self.data
         mujoco.mj_resetData(self.model, d)
-        self.model.body_mass[self.load] = max(load_kg, 1e-6)
+        self.set_load(load_kg)
         q = np.asarray(q, dtype=float)
         delta = np.zeros(6)
+        flex = np.zeros(len(self.bq))
         for _ in range(50):
             d.qpos[self.mq] = q - delta
             d.qpos[self.sq] = delta
+            d.qpos[self.bq] = flex
             d.qvel[:] = 0
             mujoco.mj_forward(self.model, d)
+            flex = -d.qfrc_bias[self.bv] / self.kb  # MuJoCo's stiffness holds the flexures
             g = d.qfrc_bias[self.sv]  # the torque the spring must supply
             # Newton on k δ + k3 δ³ = -g, per joint
             for j in range(6):
@@ -344,6 +400,7 @@ class Plant:
                     delta[j] -= f / (self.k1[j] + 3 * self.k3[j] * delta[j] ** 2)
         d.qpos[self.mq] = q - delta
         d.qpos[self.sq] = delta
+        d.qpos[self.bq] = flex
         mujoco.mj_forward(self.model, d)
         # the speed loop's integrator holds the spring torque (the motor torque at rest)
         self.tau_m = d.qfrc_bias[self.mv].copy()
@@ -417,11 +474,21 @@ class Plant:
 
 
 def parse_hidden(h):
-    """The reset's `hidden` transmission effects, checked: {"gear": [6], "bearing": [6][2]}."""
+    """The reset's `hidden` effects, checked: {"gear": [6], "bearing": [6][2], "bend": [6],
+    "payload_kg": m}, each optional."""
     if h is None:
         return None
-    if not isinstance(h, dict) or set(h) - {"gear", "bearing"}:
-        raise ValueError("hidden: an object with `gear` and/or `bearing`")
+    if not isinstance(h, dict) or set(h) - {"gear", "bearing", "bend", "payload_kg"}:
+        raise ValueError("hidden: an object with `gear`, `bearing`, `bend` and/or `payload_kg`")
+    bend = h.get("bend", [0.0] * 6)
+    if not (isinstance(bend, list) and len(bend) == 6 and all(
+            isinstance(c, (int, float)) and math.isfinite(c) and 0 <= c <= MAX_BEND
+            and (c == 0 or r in BEND_ROWS) for r, c in enumerate(bend))):
+        raise ValueError(f"hidden.bend: six compliances rad/(N·m), each 0..{MAX_BEND:g}, "
+                         f"non-zero only on rows {BEND_ROWS} (upper arm, forearm)")
+    extra = h.get("payload_kg", 0.0)
+    if not (isinstance(extra, (int, float)) and math.isfinite(extra) and 0 <= extra <= MAX_HIDDEN_PAYLOAD_KG):
+        raise ValueError(f"hidden.payload_kg: a mass 0..{MAX_HIDDEN_PAYLOAD_KG:g} kg")
     gear = h.get("gear", [0.0] * 6)
     if not (isinstance(gear, list) and len(gear) == 6 and all(
             isinstance(g, (int, float)) and math.isfinite(g) and abs(g) <= 0.01 for g in gear)):
@@ -431,7 +498,7 @@ def parse_hidden(h):
             isinstance(b, list) and len(b) == 2 and all(isinstance(x, (int, float)) and math.isfinite(x) for x in b)
             and abs(b[0]) <= 0.002 for b in bearing)):
         raise ValueError("hidden.bearing: six [amplitude rad within ±0.002, phase rad]")
-    return {"gear": gear, "bearing": bearing}
+    return {"gear": gear, "bearing": bearing, "bend": bend, "payload_kg": extra}
 
 
 def serve():
@@ -470,7 +537,7 @@ def serve():
                 kg = float(r["kg"])
                 if not (0 <= kg <= 100):
                     raise ValueError("kg: 0..100 kg")
-                plant.model.body_mass[plant.load] = max(kg, 1e-6)
+                plant.set_load(kg)
                 out = plant.state()
             elif op == "quit":
                 return
@@ -531,6 +598,31 @@ def selftest():
         "bearing_expected_rad": -a * math.sin(theta[1] + phi),
         "j3_reading_speed_rad_s": r["motor_speed"][2],
     }
+    # hidden effects outside the joints: a bending upper arm turns at its midpoint by c times
+    # the moment of the bodies beyond it (summed here from MuJoCo's bodies, not its forces),
+    # and stays at rest; a hidden tool mass loads the joints as a declared one would
+    c = 5e-6
+    p = Plant(seed=3, friction=1.0, hidden={"bend": [0, c, 0, 0, 0, 0]})
+    s0 = p.reset(q, load_kg=9.18)
+    s = p.step(1.0, [0.0] * 6)
+    m, d = p.model, p.data
+    b = m.body("bend1").id
+    moment = np.zeros(3)
+    for i in range(1, m.nbody):
+        k = i
+        while k not in (0, b):
+            k = m.body_parentid[k]
+        if k == b:
+            moment += np.cross(d.xipos[i] - d.xpos[b], m.body_mass[i] * m.opt.gravity)
+    turn = [(d.qpos[m.jnt_qposadr[m.joint(f"b1{x}").id]], c * moment.dot(d.xaxis[m.joint(f"b1{x}").id])) for x in "ab"]
+    heavy = Plant(seed=3, friction=0.0, hidden={"payload_kg": 1.5}).reset(q, load_kg=9.18)
+    declared = Plant(seed=3, friction=0.0).reset(q, load_kg=10.68)
+    res["outside"] = {
+        "bend_turn_rad": [t for t, _ in turn],
+        "bend_expected_rad": [e for _, e in turn],
+        "bend_rest_drift_m": float(np.linalg.norm(np.array(s["tool"][:3]) - np.array(s0["tool"][:3]))),
+        "payload_torque_gap_nm": max(abs(a - b) for a, b in zip(heavy["motor_torque"], declared["motor_torque"])),
+    }
     print(json.dumps(res))
     return res
 
@@ -548,6 +640,17 @@ def check(res):
                            f"expected {h[f'{what}_expected_rad']:.3g}")
         if abs(h["j3_reading_speed_rad_s"] - 0.05) > 1e-3:
             bad.append(f"hidden gear: J3 read {h['j3_reading_speed_rad_s']:.4g} rad/s for a command of 0.05")
+    o = res.pop("outside", None)
+    if o is not None:
+        for t, e in zip(o["bend_turn_rad"], o["bend_expected_rad"]):
+            if abs(t - e) > 1e-3 * abs(e) + 1e-9:
+                bad.append(f"hidden bend: the flexure turned {t:.4g} rad, the moment says {e:.4g}")
+        if abs(o["bend_turn_rad"][0]) < 1e-4:
+            bad.append(f"hidden bend: the upper arm turned only {o['bend_turn_rad'][0]:.3g} rad at 90 N")
+        if o["bend_rest_drift_m"] > 1e-9:
+            bad.append(f"hidden bend: the tool drifts {o['bend_rest_drift_m']:.3g} m at rest")
+        if o["payload_torque_gap_nm"] > 1e-6:
+            bad.append(f"hidden payload: joint torques differ by {o['payload_torque_gap_nm']:.3g} N·m from the declared mass")
     for key, r in res.items():
         if r["rest_drift_rad"] > 1e-9:
             bad.append(f"{key}: the arm drifts {r['rest_drift_rad']:.3g} rad from its equilibrium")

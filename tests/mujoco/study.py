@@ -156,10 +156,16 @@ def named_text(f, truth):
 
 
 def hidden_text(r):
-    """The transmission effects the judge had the plant hide (`--hide-gear`, `--hide-bearing`)."""
+    """The effects the judge had the plant hide (`--hide-gear`, `--hide-bearing`, `--hide-bend`,
+    `--hide-payload`)."""
     h = r.get("hidden") or {}
     parts = [f"J{j + 1} gear {g:.3g}" for j, g in enumerate(h.get("gear", [])) if g]
     parts += [f"J{j + 1} bearing {a:.3g} rad at {phi:.3g}" for j, (a, phi) in enumerate(h.get("bearing", [])) if a]
+    links = {1: "upper arm", 3: "forearm"}
+    parts += [f"{links.get(row, f'row {row}')} (row {row}) bending {c:.3g} rad/(N·m)"
+              for row, c in enumerate(h.get("bend", [])) if c]
+    if h.get("payload_kg"):
+        parts.append(f"{h['payload_kg']:.3g} kg at the tool undeclared")
     return f" (plant hid {', '.join(parts)})" if parts else ""
 
 
