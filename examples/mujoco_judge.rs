@@ -28,7 +28,8 @@
 //! [--friction F] [--friction-model creep|stick] [--torque-source measured|model|blended|estimated]
 //! [--current-filter-hz HZ] [--no-identify] [--hold-deadband RAD] [--hold-damping D] [--gain-inertia KGM2] [--check-ratio R] [--trace FILE]
 //! [--keep DIR] [--extra-configs N] [--extra-flipped] [--validation-poses N] [--hide-gear J:G]
-//! [--hide-bearing J:A:PHI] [--hide-bend upper|forearm:C] [--hide-payload KG] [--exact-resolvers]`
+//! [--hide-bearing J:A:PHI] [--hide-bend upper|forearm:C] [--hide-payload KG] [--exact-resolvers]
+//! [--tool X,Y,Z]`
 //! — by default as `config/sim-mujoco.yaml` runs the daemon and the README's workflow runs a
 //! lab: `pa10 identify` first, `torque_source: estimated`, `hold_damping: 1`. Needs `pip install
 //! mujoco` (the Python interpreter `PA10_PYTHON`, default `python3`; `PA10_PLANT` names another
@@ -49,7 +50,7 @@ use pa10::daemon::core::Core;
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
 use pa10::discover::{DiscoverOptions, Found, discover};
 use pa10::model::{Frame, Model, NOMINAL_YAML, Torques, pose_error, pose_parts};
-use pa10::sim::experiment::{CampaignSpec, grid_poses, random_pose, sidecar};
+use pa10::sim::experiment::{grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
 use pa10::sim::plant::{
     BENDING_ROWS, FrictionModel, HiddenEffects, MAX_FRICTION_SCALE, PlantConfig, PlantKind,
@@ -148,7 +149,14 @@ struct Opts {
     /// diagnostic: what the loop does when the only error left is the instrument's and the
     /// servo's; the floor quoted stays the specified resolvers').
     exact_resolvers: bool,
+    /// `--tool X,Y,Z`: the tool point (the tooling ball, where the load hangs) in the flange
+    /// frame, m; default the campaigns' 0.35 m along the flange axis. Off the axis, J6 carries
+    /// the load (the plant's J6 spring, which the model calls rigid, shows).
+    tool: [f64; 3],
 }
+
+/// Largest distance of `--tool` from the flange, m.
+const MAX_TOOL_M: f64 = 0.5;
 
 /// Joint `J` (1…6) and the numbers after it of a `--hide-…` value `J:x[:y]`.
 fn hidden_joint(flag: &str, v: &str, numbers: usize) -> Result<(usize, Vec<f64>)> {
@@ -195,6 +203,7 @@ fn opts() -> Result<Opts> {
         extra_flipped: false,
         hidden: None,
         exact_resolvers: false,
+        tool: [0.0, 0.0, 0.35],
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -204,6 +213,27 @@ fn opts() -> Result<Opts> {
             "--quick" => o.quick = true,
             "--extra-flipped" => o.extra_flipped = true,
             "--exact-resolvers" => o.exact_resolvers = true,
+            "--tool" => {
+                let v = value("--tool")?;
+                let xyz = v
+                    .split(',')
+                    .map(|p| {
+                        p.trim()
+                            .parse::<f64>()
+                            .ok()
+                            .filter(|x| x.is_finite())
+                            .with_context(|| format!("--tool: X,Y,Z in m, got {v}"))
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                ensure!(xyz.len() == 3, "--tool: X,Y,Z in m, got {v}");
+                let t = [xyz[0], xyz[1], xyz[2]];
+                let r = t.iter().map(|x| x * x).sum::<f64>().sqrt();
+                ensure!(
+                    (0.05..=MAX_TOOL_M).contains(&r),
+                    "--tool: 0.05…{MAX_TOOL_M} m from the flange, got {r:.3} m"
+                );
+                o.tool = t;
+            }
             "--check" => o.check = true,
             "--identify" => o.identify = true,
             "--discover" => o.discover = true,
@@ -318,7 +348,7 @@ fn opts() -> Result<Opts> {
                 o.filter_hz = Some(f);
             }
             other => bail!(
-                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE, --keep DIR, --extra-configs N, --extra-flipped, --validation-poses N, --hide-gear J:G, --hide-bearing J:A:PHI, --hide-bend upper|forearm:C, --hide-payload KG, --exact-resolvers)"
+                "unknown argument {other} (--json, --quick, --check, --discover, --no-recalibrate, --identify, --no-identify, --seed N, --friction F, --friction-model creep|stick, --torque-source measured|model|blended|estimated, --current-filter-hz HZ, --hold-deadband RAD, --hold-damping D, --gain-inertia KGM2, --check-ratio R, --trace FILE, --keep DIR, --extra-configs N, --extra-flipped, --validation-poses N, --hide-gear J:G, --hide-bearing J:A:PHI, --hide-bend upper|forearm:C, --hide-payload KG, --exact-resolvers, --tool X,Y,Z)"
             ),
         }
     }
@@ -615,6 +645,8 @@ struct Outcome {
     /// `--exact-resolvers`: the plant's resolvers had no repeatable error (a diagnostic run).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     exact_resolvers: bool,
+    /// The tool point in the flange frame, m (`--tool`).
+    tool_m: [f64; 3],
     calibration_rows: usize,
     validation_poses: usize,
     simulated_s: f64,
@@ -831,9 +863,7 @@ fn rig(settings: &Settings, o: &Opts) -> Result<Lockstep> {
             script.to_string_lossy().into_owned(),
         ]);
     }
-    let tool = CampaignSpec::default().tool.translation.vector;
-    let mo = MujocoOptions::from_config(&plant, o.seed, [tool.x, tool.y, tool.z], HOME)
-        .honouring_pa10_python();
+    let mo = MujocoOptions::from_config(&plant, o.seed, o.tool, HOME).honouring_pa10_python();
     let plant = MujocoPlant::start(&mo).context(
         "starting the MuJoCo plant (pip install mujoco; PA10_PYTHON names the interpreter)",
     )?;
@@ -1017,7 +1047,10 @@ fn set_load(ls: &mut Lockstep, newtons: f64) -> Result<f64> {
 fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     let settings = settings(dir, o)?;
     let kt = settings.control.torque_constants;
-    let tool = CampaignSpec::default().tool;
+    let tool = Frame::from_parts(
+        nalgebra::Translation3::new(o.tool[0], o.tool[1], o.tool[2]),
+        nalgebra::Rotation3::identity(),
+    );
     let nominal = Model::nominal().with_tool(&tool)?;
     let mut ls = rig(&settings, o)?;
     let truth = ls.servo.truth().clone();
@@ -1412,6 +1445,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         seed: o.seed,
         hidden: o.hidden,
         exact_resolvers: o.exact_resolvers,
+        tool_m: o.tool,
         calibration_rows: data.rows.len(),
         validation_poses: targets.len(),
         simulated_s: ls.now(),
