@@ -179,7 +179,13 @@ fn hidden_joint(flag: &str, v: &str, numbers: usize) -> Result<(usize, Vec<f64>)
     Ok((j - 1, x))
 }
 
+/// The options of the process's arguments.
 fn opts() -> Result<Opts> {
+    opts_from(std::env::args().skip(1))
+}
+
+/// The options of `args` (without the program's name), checked.
+fn opts_from(mut args: impl Iterator<Item = String>) -> Result<Opts> {
     let mut o = Opts {
         json: false,
         quick: false,
@@ -205,7 +211,6 @@ fn opts() -> Result<Opts> {
         exact_resolvers: false,
         tool: [0.0, 0.0, 0.35],
     };
-    let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or_else(|| anyhow!("{name} needs a value"));
         match a.as_str() {
@@ -2091,6 +2096,39 @@ fn print(o: &Outcome) {
 mod tests {
     use super::*;
     use nalgebra::Vector3;
+
+    fn parse(args: &str) -> Result<Opts> {
+        opts_from(args.split_whitespace().map(String::from))
+    }
+
+    #[test]
+    fn the_tool_and_the_hidden_effects_are_read_and_bad_values_refused() {
+        let o = parse(
+            "--tool 0.08,0,0.3 --hide-bend forearm:2e-5 --hide-bend upper:1e-5 --hide-payload 1",
+        )
+        .unwrap();
+        assert_eq!(o.tool, [0.08, 0.0, 0.3]);
+        let h = o.hidden.unwrap();
+        assert_eq!((h.bend[1], h.bend[3], h.payload_kg), (1e-5, 2e-5, 1.0));
+        assert_eq!(parse("").unwrap().tool, [0.0, 0.0, 0.35]);
+        for (args, why) in [
+            ("--tool 1,2", "X,Y,Z"),
+            ("--tool 0,0,0.01", "from the flange"),
+            ("--tool 0,0,0.6", "from the flange"),
+            ("--tool 0,nan,0.3", "X,Y,Z"),
+            ("--hide-bend elbow:1e-5", "upper or forearm"),
+            ("--hide-bend forearm", "upper:C or forearm:C"),
+            ("--hide-bend forearm:1", "bend[3]"),
+            ("--hide-payload -1", "payload_kg"),
+            ("--hide-payload", "needs a value"),
+        ] {
+            let e = match parse(args) {
+                Ok(_) => panic!("{args}: accepted"),
+                Err(e) => format!("{e:#}"),
+            };
+            assert!(e.contains(why), "{args}: {e}");
+        }
+    }
 
     #[test]
     fn paired_compares_only_the_poses_both_models_reached() {
