@@ -49,7 +49,7 @@ use pa10::daemon::config::{Config, Settings};
 use pa10::daemon::core::Core;
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
 use pa10::discover::{DiscoverOptions, Found, discover};
-use pa10::model::{Frame, Model, NOMINAL_YAML, Torques, pose_error, pose_parts};
+use pa10::model::{Frame, Model, NOMINAL_YAML, Torques, frame_from_pose, pose_error, pose_parts};
 use pa10::sim::experiment::{grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
 use pa10::sim::plant::{
@@ -1052,10 +1052,7 @@ fn set_load(ls: &mut Lockstep, newtons: f64) -> Result<f64> {
 fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     let settings = settings(dir, o)?;
     let kt = settings.control.torque_constants;
-    let tool = Frame::from_parts(
-        nalgebra::Translation3::new(o.tool[0], o.tool[1], o.tool[2]),
-        nalgebra::Rotation3::identity(),
-    );
+    let tool = frame_from_pose(o.tool, [1.0, 0.0, 0.0, 0.0]);
     let nominal = Model::nominal().with_tool(&tool)?;
     let mut ls = rig(&settings, o)?;
     let truth = ls.servo.truth().clone();

@@ -51,7 +51,7 @@ pub struct MujocoOptions {
     pub tool: [f64; 3],
     /// Link angles the arm starts at rest at, rad.
     pub q0: [f64; 6],
-    /// Transmission effects the plant hides (sent only when present).
+    /// Effects the plant hides (sent only when present; keys that are all zero left out).
     pub hidden: Option<HiddenEffects>,
 }
 
