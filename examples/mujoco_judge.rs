@@ -49,7 +49,9 @@ use pa10::daemon::config::{Config, Settings};
 use pa10::daemon::core::Core;
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
 use pa10::discover::{DiscoverOptions, Found, discover};
-use pa10::model::{Frame, Model, NOMINAL_YAML, Torques, frame_from_pose, pose_error, pose_parts};
+use pa10::model::{
+    Frame, JointLimits, Model, NOMINAL_YAML, Torques, frame_from_pose, pose_error, pose_parts,
+};
 use pa10::sim::experiment::{grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
 use pa10::sim::plant::{
@@ -1265,6 +1267,14 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             exact_mm: vec![[None; 3]; named.len()],
             sigma_mm: vec![None; named.len()],
         };
+        // one approach for every model: from the first model's solution where the arm is now
+        // (an unreachable pose keeps the default; the first model's move says why)
+        let approach = placed
+            .ik_nearest(
+                &(placed.base_from_instrument() * target),
+                &status(&ls)?.setpoint,
+            )
+            .map_or(APPROACH_OFFSET, |q| approach_offset(&q, placed.limits()));
         for (mi, (name, m)) in named.iter().enumerate() {
             let path = paths[mi].display().to_string();
             ask(&ls, ApiRequest::LoadModel { path })
@@ -1272,7 +1282,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             // the calibrated and extended models take the loads in the same order
             let reversed = mi >= 1;
             let twin = twin.as_ref().filter(|_| mi == 2);
-            match validate_pose(&mut ls, m, twin, target, &truth_base, reversed) {
+            match validate_pose(&mut ls, m, twin, target, &approach, &truth_base, reversed) {
                 Ok(v) => {
                     move_settle_s[mi].push(v.after_move_s);
                     if mi == 1 {
@@ -1715,8 +1725,25 @@ impl PoseResult {
 /// two models approaching from each other's resting places would not be compared alike).
 const APPROACH_OFFSET: [f64; 6] = [0.05, 0.05, -0.05, 0.05, 0.05, 0.05];
 
+/// How far inside its limits an approach keeps every joint, rad: the models' solutions of one
+/// pose differ by milliradians, so one pose's approach is decided once for all of them.
+const APPROACH_MARGIN: f64 = 0.02;
+
+/// The approach offsets (rad) of a pose whose joint angles are `q` (rad; any model's): each of
+/// [`APPROACH_OFFSET`], turned to the other side where it would take its joint within
+/// [`APPROACH_MARGIN`] of a limit (a wrist roll near ±255° with an off-axis tool: the daemon
+/// refuses a target beyond the limit, and the pose would be lost to every model).
+fn approach_offset(q: &[f64; 6], limits: &JointLimits) -> [f64; 6] {
+    std::array::from_fn(|j| {
+        let off = APPROACH_OFFSET[j];
+        let beyond = q[j] + off > limits.upper[j] - APPROACH_MARGIN
+            || q[j] + off < limits.lower[j] + APPROACH_MARGIN;
+        if beyond { -off } else { off }
+    })
+}
+
 /// Moves to the approach configuration of `target` (its inverse kinematics on `model` plus
-/// [`APPROACH_OFFSET`]), then to `model`'s estimate of `target` (instrument frame), and
+/// `approach`, the pose's [`approach_offset`]), then to `model`'s estimate of `target` (instrument frame), and
 /// measures it at 0/45/90 N (in reverse order when `reversed`) by MuJoCo's tool pose; any
 /// fault is an error. `twin`: the same model fitted to the campaign as exact resolvers would
 /// have read it, whose own error the split's fifth part is ([`Parts`]).
@@ -1725,6 +1752,7 @@ fn validate_pose(
     model: &Model,
     twin: Option<&Model>,
     target: &Frame,
+    approach: &[f64; 6],
     truth_base: &Frame,
     reversed: bool,
 ) -> Result<PoseResult> {
@@ -1732,7 +1760,7 @@ fn validate_pose(
     let q = model
         .ik_nearest(&base_target, &status(ls)?.setpoint)
         .map_err(|e| anyhow!("the validation pose: {e}"))?;
-    let approach = std::array::from_fn(|j| q[j] + APPROACH_OFFSET[j]);
+    let approach = std::array::from_fn(|j| q[j] + approach[j]);
     move_settle(ls, ApiRequest::MoveJoints { q: approach }).context("the approach")?;
     let (position, quaternion) = pose_parts(&base_target);
     let after_move_s = move_settle(
@@ -2096,6 +2124,26 @@ mod tests {
 
     fn parse(args: &str) -> Result<Opts> {
         opts_from(args.split_whitespace().map(String::from))
+    }
+
+    #[test]
+    fn an_approach_turns_back_where_it_would_leave_a_joint_limit() {
+        let limits = *Model::nominal().limits();
+        let mid = [0.1, 0.4, 1.6, 0.0, 1.1, 0.0];
+        assert_eq!(approach_offset(&mid, &limits), APPROACH_OFFSET);
+        // seed 3 off the axis: a validation pose with J6 at 4.433 rad of ±4.4506
+        let mut q = mid;
+        q[5] = limits.upper[5] - 0.0176;
+        let a = approach_offset(&q, &limits);
+        assert_eq!(a[5], -APPROACH_OFFSET[5]);
+        assert_eq!(a[..5], APPROACH_OFFSET[..5]);
+        assert!(q[5] + a[5] < limits.upper[5] - APPROACH_MARGIN);
+        // J3's offset is negative: near its lower limit it turns positive
+        let mut q = mid;
+        q[2] = limits.lower[2] + 0.03;
+        let a = approach_offset(&q, &limits);
+        assert_eq!(a[2], -APPROACH_OFFSET[2]);
+        assert!(q[2] + a[2] > limits.lower[2] + APPROACH_MARGIN);
     }
 
     #[test]
