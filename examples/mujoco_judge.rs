@@ -50,14 +50,15 @@ use pa10::daemon::core::Core;
 use pa10::daemon::wire::{Answer, ApiRequest, Reply, State, Status};
 use pa10::discover::{DiscoverOptions, Found, discover};
 use pa10::model::{
-    Frame, JointLimits, Model, NOMINAL_YAML, Torques, frame_from_pose, pose_error, pose_parts,
+    Frame, IkError, JointLimits, Model, NOMINAL_YAML, Torques, frame_from_pose, pose_error,
+    pose_parts,
 };
 use pa10::sim::experiment::{grid_poses, random_pose, sidecar};
 use pa10::sim::mujoco::{MujocoOptions, MujocoPlant};
 use pa10::sim::plant::{
     BENDING_ROWS, FrictionModel, HiddenEffects, MAX_FRICTION_SCALE, PlantConfig, PlantKind,
 };
-use pa10::sim::rig::{HOME, Lockstep, truth_for};
+use pa10::sim::rig::{HOME, Lockstep, default_tool, truth_for};
 use pa10::sim::servo::{ServoConfig, ServoSim};
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
@@ -153,7 +154,9 @@ struct Opts {
     exact_resolvers: bool,
     /// `--tool X,Y,Z`: the tool point (the tooling ball, where the load hangs) in the flange
     /// frame, m; default the campaigns' 0.35 m along the flange axis. Off the axis, J6 carries
-    /// the load (the plant's J6 spring, which the model calls rigid, shows).
+    /// the load (the plant's J6 spring, which the model calls rigid, shows). A grid pose the
+    /// tool cannot reach pointing down (a long or tilted tool) is measured at the paper tool's
+    /// configuration there ([`campaign_config`]).
     tool: [f64; 3],
 }
 
@@ -1056,6 +1059,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     let kt = settings.control.torque_constants;
     let tool = frame_from_pose(o.tool, [1.0, 0.0, 0.0, 0.0]);
     let nominal = Model::nominal().with_tool(&tool)?;
+    let paper = Model::nominal().with_tool(&default_tool())?;
     let mut ls = rig(&settings, o)?;
     let truth = ls.servo.truth().clone();
     // 0. With --identify the identified gravity model and friction are the starting model.
@@ -1076,8 +1080,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
     let mut reference = HOME;
     let mut configs = Vec::new();
     for (id, target) in &poses {
-        reference = nominal
-            .ik_nearest(target, &reference)
+        reference = campaign_config(&nominal, &paper, target, &reference)
             .map_err(|e| anyhow!("pose {id}: {e}"))?;
         configs.push((id.clone(), reference));
     }
@@ -1100,7 +1103,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             } else {
                 reference
             };
-            if let Ok(q) = nominal.ik_nearest(&t, &near) {
+            if let Ok(q) = campaign_config(&nominal, &paper, &t, &near) {
                 if !flip {
                     reference = q;
                 }
@@ -1477,6 +1480,22 @@ fn novel_pose(nominal: &Model, rng: &mut Pcg64) -> (Frame, [f64; 6]) {
             return (t, q);
         }
     }
+}
+
+/// A calibration campaign's configuration (joint angles, rad) for `target` (the tool's pose in
+/// the base frame, pointing down as the paper's grid): `nominal`'s inverse kinematics with the
+/// mounted tool nearest `reference`, else — a tool that cannot reach it pointing down, a long
+/// or tilted one — the configuration `paper` (the paper's 0.35 m tool) has there: the arm takes
+/// the paper's pose and the instrument measures the mounted tool wherever it then is.
+fn campaign_config(
+    nominal: &Model,
+    paper: &Model,
+    target: &Frame,
+    reference: &[f64; 6],
+) -> Result<[f64; 6], IkError> {
+    nominal
+        .ik_nearest(target, reference)
+        .or_else(|_| paper.ik_nearest(target, reference))
 }
 
 /// The campaign `raw` as the fit sees it from `model`: where the daemon's torques come from
@@ -2124,6 +2143,23 @@ mod tests {
 
     fn parse(args: &str) -> Result<Opts> {
         opts_from(args.split_whitespace().map(String::from))
+    }
+
+    #[test]
+    fn a_grid_pose_a_tool_cannot_reach_is_taken_at_the_paper_tools_configuration() {
+        let paper = Model::nominal().with_tool(&default_tool()).unwrap();
+        let long = Model::nominal()
+            .with_tool(&frame_from_pose([0.0, 0.0, 0.5], [1.0, 0.0, 0.0, 0.0]))
+            .unwrap();
+        let grid = grid_poses();
+        let (id, far) = grid.iter().find(|(id, _)| id == "g222").unwrap();
+        assert!(long.ik_nearest(far, &HOME).is_err(), "{id} reachable");
+        let q = campaign_config(&long, &paper, far, &HOME).unwrap();
+        assert_eq!(q, paper.ik_nearest(far, &HOME).unwrap());
+        // a pose the mounted tool reaches is its own solution
+        let (_, near) = &grid[0];
+        let q = campaign_config(&paper, &long, near, &HOME).unwrap();
+        assert_eq!(q, paper.ik_nearest(near, &HOME).unwrap());
     }
 
     #[test]
