@@ -629,6 +629,10 @@ struct Outcome {
     ring: Option<Ring>,
     /// Faults during the validation (that model's pose skipped, the daemon reset)
     validation_faults: Vec<String>,
+    /// Faults while gathering the campaigns (that configuration's rows left out, the daemon
+    /// reset): a tool and load the drives cannot follow somewhere
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    campaign_faults: Vec<String>,
     /// Per validation pose: the calibrated model's setpoint there (rad) and each model's
     /// (nominal, calibrated[, extended]) position error at 0/45/90 N, mm (`null`: faulted).
     validation_poses_detail: Vec<PoseDetail>,
@@ -814,6 +818,11 @@ fn check(o: &Outcome, ratio: f64) -> Vec<String> {
         bad.push(format!("ended early: {a}"));
     }
     bad.extend(o.validation_faults.iter().map(|f| format!("fault: {f}")));
+    bad.extend(
+        o.campaign_faults
+            .iter()
+            .map(|f| format!("campaign fault: {f}")),
+    );
     bad
 }
 
@@ -1084,7 +1093,15 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
             .map_err(|e| anyhow!("pose {id}: {e}"))?;
         configs.push((id.clone(), reference));
     }
-    let (rows, mut exact_q) = gather(&mut ls, &configs, &CAL_LOADS, repeats, &mut rng)?;
+    let mut campaign_faults = Vec::new();
+    let (rows, mut exact_q) = gather(
+        &mut ls,
+        &configs,
+        &CAL_LOADS,
+        repeats,
+        &mut rng,
+        &mut campaign_faults,
+    )?;
     let mut data = Dataset {
         rows,
         ..Dataset::default()
@@ -1110,8 +1127,15 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
                 extra.push((format!("c{}", extra.len() + 1), q));
             }
         }
-        let (rows, exact) = gather(&mut ls, &extra, &CAL_LOADS, repeats, &mut crng)
-            .context("the extra configurations")?;
+        let (rows, exact) = gather(
+            &mut ls,
+            &extra,
+            &CAL_LOADS,
+            repeats,
+            &mut crng,
+            &mut campaign_faults,
+        )
+        .context("the extra configurations")?;
         data.rows.extend(rows);
         exact_q.extend(exact);
     }
@@ -1137,9 +1161,16 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         let mut hrng = Pcg64::seed_from_u64(o.seed ^ 0x401d);
         let configs = novel_configs(&nominal, if o.quick { 4 } else { 10 }, &mut hrng);
         Some(Dataset {
-            rows: gather(&mut ls, &configs, &VAL_LOADS, repeats, &mut hrng)
-                .context("the held-out campaign")?
-                .0,
+            rows: gather(
+                &mut ls,
+                &configs,
+                &VAL_LOADS,
+                repeats,
+                &mut hrng,
+                &mut campaign_faults,
+            )
+            .context("the held-out campaign")?
+            .0,
             meta: Some(sidecar(
                 format!("MuJoCo plant (seed {}) through pa10d, held out", o.seed),
                 &tool,
@@ -1440,6 +1471,7 @@ fn judge(o: &Opts, dir: &Path, t0: Instant) -> Result<Outcome> {
         move_settle_mean_s: (mean(&move_settle_s[0]), mean(&move_settle_s[1])),
         ring,
         validation_faults: faults,
+        campaign_faults,
         validation_poses_detail: detail,
         aborted,
         torque_source: o.torque_source.clone(),
@@ -1528,38 +1560,53 @@ fn novel_configs(nominal: &Model, n: usize, rng: &mut Pcg64) -> Vec<(String, [f6
 /// MuJoCo's mean tool pose (with the drawn instrument noise) — as a tracker takes a stationary
 /// point and `pa10 collect` averages a still phase. One instant of a link still ringing on
 /// stuck drives is not where the arm rests (docs/judge.md §9, eleventh session). Returns the
-/// rows and, per row, MuJoCo's motor angles (rad): what exact resolvers would have read.
+/// rows and, per row, MuJoCo's motor angles (rad): what exact resolvers would have read. A
+/// fault at a configuration (a drive that cannot follow a heavy tool's swing: a following
+/// error) is recovered from and said in `faults`, and that configuration's rows are left out,
+/// as a lab re-homes and carries on; a fault the daemon does not recover from is an error.
 fn gather(
     ls: &mut Lockstep,
     configs: &[(String, [f64; 6])],
     loads: &[f64],
     repeats: usize,
     rng: &mut Pcg64,
+    faults: &mut Vec<String>,
 ) -> Result<(Vec<Row>, Vec<[f64; 6]>)> {
     let truth = ls.servo.truth().clone();
     let (mut rows, mut exact) = (Vec::new(), Vec::new());
     for (n, (id, q)) in configs.iter().enumerate() {
-        move_settle(ls, ApiRequest::MoveJoints { q: *q }).with_context(|| format!("pose {id}"))?;
         let mut order = loads.to_vec();
         if n % 2 == 1 {
             order.reverse();
         }
-        for load in order {
-            set_load(ls, load).with_context(|| format!("pose {id} at {load} N"))?;
-            for _ in 0..repeats {
-                let o = observe_for(ls, OBSERVE_S / repeats as f64)?;
-                rows.push(Row {
-                    config_id: id.clone(),
-                    load_n: load,
-                    q: o.q_motor,
-                    effort: Effort::Current(o.current),
-                    pose: truth.observe_pose(&o.tool, rng),
-                    direction: [0; 6],
-                    temperature_c: None,
-                    line: 0,
-                });
-                exact.push(o.motor);
+        let mut at = Vec::with_capacity(order.len() * repeats);
+        let reached = (|| -> Result<()> {
+            move_settle(ls, ApiRequest::MoveJoints { q: *q }).context("the move")?;
+            for &load in &order {
+                set_load(ls, load).with_context(|| format!("at {load} N"))?;
+                for _ in 0..repeats {
+                    at.push((load, observe_for(ls, OBSERVE_S / repeats as f64)?));
+                }
             }
+            Ok(())
+        })();
+        if let Err(e) = reached {
+            recover(ls).with_context(|| format!("pose {id}: {e:#}"))?;
+            faults.push(format!("pose {id}: {e:#}"));
+            continue;
+        }
+        for (load, o) in at {
+            rows.push(Row {
+                config_id: id.clone(),
+                load_n: load,
+                q: o.q_motor,
+                effort: Effort::Current(o.current),
+                pose: truth.observe_pose(&o.tool, rng),
+                direction: [0; 6],
+                temperature_c: None,
+                line: 0,
+            });
+            exact.push(o.motor);
         }
     }
     Ok((rows, exact))
@@ -2117,6 +2164,9 @@ fn print(o: &Outcome) {
             row(&i.gravity_rms_nm[0]),
             row(&i.gravity_rms_nm[1])
         );
+    }
+    for f in &o.campaign_faults {
+        println!("Campaign fault (the configuration left out): {f}");
     }
     for f in &o.validation_faults {
         println!("Validation fault: {f}");

@@ -112,6 +112,7 @@ def problems(r, ratio):
     if "failed" in r:
         return [f"failed: {r['failed']}"]
     bad = [f"fault: {f}" for f in r["validation_faults"]]
+    bad += [f"campaign fault: {f}" for f in r.get("campaign_faults", [])]
     if r["aborted"]:
         bad.append(f"aborted: {r['aborted']}")
     diffs = paired(r)
@@ -308,7 +309,7 @@ def summary(results):
     for (model, scale), rs in sorted(groups.items()):
         ok = [r for r in rs if "failed" not in r]
         failed = len(rs) - len(ok)
-        faulted = sum(1 for r in ok if r["validation_faults"])
+        faulted = sum(1 for r in ok if r["validation_faults"] or r.get("campaign_faults"))
         aborted = sum(1 for r in ok if r["aborted"])
         ratios = []
         for k in range(3):
