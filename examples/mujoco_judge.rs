@@ -1563,7 +1563,8 @@ fn novel_configs(nominal: &Model, n: usize, rng: &mut Pcg64) -> Vec<(String, [f6
 /// rows and, per row, MuJoCo's motor angles (rad): what exact resolvers would have read. A
 /// fault at a configuration (a drive that cannot follow a heavy tool's swing: a following
 /// error) is recovered from and said in `faults`, and that configuration's rows are left out,
-/// as a lab re-homes and carries on; a fault the daemon does not recover from is an error.
+/// as a lab re-homes and carries on; a fault the daemon does not recover from, or an error
+/// that is not a fault, is an error.
 fn gather(
     ls: &mut Lockstep,
     configs: &[(String, [f64; 6])],
@@ -1591,7 +1592,14 @@ fn gather(
             Ok(())
         })();
         if let Err(e) = reached {
-            recover(ls).with_context(|| format!("pose {id}: {e:#}"))?;
+            // a fault is recovered from and said; any other error (the plant gone, a refusal
+            // while holding) ends the run as before
+            if recover(ls)
+                .with_context(|| format!("pose {id}: {e:#}"))?
+                .is_none()
+            {
+                return Err(e.context(format!("pose {id}")));
+            }
             faults.push(format!("pose {id}: {e:#}"));
             continue;
         }
