@@ -214,7 +214,7 @@ fn opts_from(mut args: impl Iterator<Item = String>) -> Result<Opts> {
         extra_flipped: false,
         hidden: None,
         exact_resolvers: false,
-        tool: [0.0, 0.0, 0.35],
+        tool: default_tool().translation.vector.into(),
     };
     while let Some(a) = args.next() {
         let mut value = |name: &str| args.next().ok_or_else(|| anyhow!("{name} needs a value"));
@@ -1817,10 +1817,11 @@ fn approach_offset(q: &[f64; 6], limits: &JointLimits) -> [f64; 6] {
 }
 
 /// Moves to the approach configuration of `target` (its inverse kinematics on `model` plus
-/// `approach`, the pose's [`approach_offset`]), then to `model`'s estimate of `target` (instrument frame), and
-/// measures it at 0/45/90 N (in reverse order when `reversed`) by MuJoCo's tool pose; any
-/// fault is an error. `twin`: the same model fitted to the campaign as exact resolvers would
-/// have read it, whose own error the split's fifth part is ([`Parts`]).
+/// `approach`, the pose's [`approach_offset`]), then to `model`'s estimate of `target`
+/// (instrument frame), and measures it at 0/45/90 N (in reverse order when `reversed`) by
+/// MuJoCo's tool pose; any fault is an error. `twin`: the same model fitted to the campaign
+/// as exact resolvers would have read it, whose own error the split's fifth part is
+/// ([`Parts`]).
 fn validate_pose(
     ls: &mut Lockstep,
     model: &Model,

@@ -97,10 +97,12 @@ fn the_floor_is_the_expectation_of_a_repeatable_resolver_error_on_or_off_axis() 
                 / qs.len() as f64;
             let sigma = truth.noise.resolver_rad;
             ratios.push(realised / floor_at(&arm, &qs, sigma, 500, seed));
-            let flange = arm
-                .with_tool(&frame_from_pose([0.0, 0.0, 0.2], [1.0, 0.0, 0.0, 0.0]))
-                .unwrap();
-            without_tool.push(realised / floor_at(&flange, &qs, sigma, 500, seed));
+            if off_axis {
+                let flange = arm
+                    .with_tool(&frame_from_pose([0.0, 0.0, 0.2], [1.0, 0.0, 0.0, 0.0]))
+                    .unwrap();
+                without_tool.push(realised / floor_at(&flange, &qs, sigma, 500, seed));
+            }
         }
         let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
         let m = mean(&ratios);
